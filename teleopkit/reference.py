@@ -1,0 +1,130 @@
+"""Readable reference integrator: numpy, batched, one RK4 step at a time.
+
+It states the closed loop the way the paper writes it, using :mod:`teleopkit.dynamics`,
+:mod:`teleopkit.control` and :class:`teleopkit.channel.DelayChannel`. The compiled kernel
+(:mod:`teleopkit._kernel`) must agree with it to rounding error; it is also the "plain per-step
+Python loop" of the benchmarks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from teleopkit.channel import DelayChannel
+from teleopkit.control import environment_torque, local_torque, operator_torque, remote_torque
+from teleopkit.dynamics import coriolis_matrix, mass_matrix
+from teleopkit.params import TeleoperatorParams
+
+__all__ = ["ReferenceIntegrator"]
+
+_STAGE_OFFSETS = (0.0, 0.5, 0.5, 1.0)
+_STAGE_ROWS = (0, 1, 1, 2)
+
+
+class ReferenceIntegrator:
+    """Fixed-step RK4 of the delayed teleoperator, in numpy.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The model.
+    state : ndarray, shape (B, 8 n)
+        Initial state ``[q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp]``.
+    dt : float
+        Integration step.
+    substeps : int
+        Integration steps per control period.
+    bound : float
+        Largest delay that will be read.
+    """
+
+    def __init__(self, params: TeleoperatorParams, state: np.ndarray, dt: float, substeps: int,
+                 bound: float) -> None:
+        self.params = params
+        self.state = np.array(state, dtype=float)
+        self.dt = dt
+        self.substeps = substeps
+        n = params.n_joints
+        self.channels = (DelayChannel(self.state[:, :n], dt, bound),
+                         DelayChannel(self.state[:, 4 * n:5 * n], dt, bound))
+
+    def advance(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate ``gains.shape[0]`` control periods (arguments as :func:`teleopkit._kernel.advance`).
+
+        Returns
+        -------
+        states : ndarray, shape (P, B, 8 n)
+            State at the end of each period.
+        delayed : ndarray, shape (P, B, 2, n)
+            ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
+        """
+        states, delayed = [], []
+        for p, period_gains in enumerate(gains):
+            for s in range(self.substeps):
+                row = 2 * (p * self.substeps + s)
+                self._rk4_step(delays[row:row + 3], qh[row:row + 3], period_gains)
+            row_end = 2 * (p + 1) * self.substeps
+            states.append(self.state.copy())
+            delayed.append(np.stack(self._delayed(self.state, 0.0, delays[row_end]), axis=1))
+        return np.array(states), np.array(delayed)
+
+    def _rk4_step(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray) -> None:
+        slopes: list[np.ndarray] = []
+        for offset, row in zip(_STAGE_OFFSETS, _STAGE_ROWS, strict=True):
+            stage = self.state + offset * self.dt * slopes[-1] if slopes else self.state
+            slopes.append(self.derivative(stage, offset, delays[row], qh[row], gains))
+        k1, k2, k3, k4 = slopes
+        self.state = self.state + self.dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        n = self.params.n_joints
+        for channel, first in zip(self.channels, (0, 4 * n), strict=True):
+            channel.record(self.state[:, first:first + n], self.state[:, first + n:first + 2 * n])
+
+    def _delayed(self, x: np.ndarray, offset: float, delays: np.ndarray,
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        n = self.params.n_joints
+        return tuple(  # type: ignore[return-value]
+            channel.read(offset * self.dt, delays[:, c], (x[:, first:first + n],
+                                                         x[:, first + n:first + 2 * n]))
+            for c, (channel, first) in enumerate(zip(self.channels, (0, 4 * n), strict=True)))
+
+    def derivative(self, x: np.ndarray, offset: float, delays: np.ndarray, qh: np.ndarray,
+                   gains: np.ndarray) -> np.ndarray:
+        """Time derivative of the state at ``t_k + offset dt`` (the stage's delayed read-outs).
+
+        Parameters
+        ----------
+        x : ndarray, shape (B, 8 n)
+            Stage state.
+        offset : float
+            Stage time after the newest stored sample, in steps.
+        delays : ndarray, shape (B, 2)
+            Forward and backward delays at the stage time.
+        qh : ndarray, shape (B, n)
+            Operator reference at the stage time.
+        gains : ndarray, shape (B, 2 n)
+            Remote gains.
+
+        Returns
+        -------
+        ndarray, shape (B, 8 n)
+            The derivative.
+        """
+        p = self.params
+        ql, dql, qr, dqr, th, dth = np.split(x[:, :6 * p.n_joints], 6, axis=1)
+        ql_delayed, th_delayed = self._delayed(x, offset, delays)
+        tau_l = local_torque(p.local_gains, ql, dql, th_delayed, p.torque_limit)
+        tau_r = remote_torque(gains, th, dth, ql_delayed, p.torque_limit)
+        tau_h = operator_torque(p.operator, qh, ql, dql)
+        tau_e = environment_torque(p.environment, qr, dqr)
+        spring = np.array(p.joints.stiffness) * (qr - th)
+        ddql = self._acceleration(p.local_arm, ql, dql, tau_h - tau_l)
+        ddqr = self._acceleration(p.remote_arm, qr, dqr, -spring - tau_e)
+        ddth = (tau_r + spring) / np.array(p.joints.rotor_inertia)
+        return np.concatenate([dql, ddql, dqr, ddqr, dth, ddth, th - ql_delayed, th - qr], axis=1)
+
+    @staticmethod
+    def _acceleration(arm, q: np.ndarray, dq: np.ndarray,  # type: ignore[no-untyped-def]
+                      torque: np.ndarray) -> np.ndarray:
+        coriolis = np.einsum("bij,bj->bi", coriolis_matrix(arm, q, dq), dq)
+        return np.linalg.solve(mass_matrix(arm, q), (torque - coriolis)[..., None])[..., 0]
