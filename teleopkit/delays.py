@@ -149,7 +149,10 @@ class ConstantDelay:
     bound: float = math.nan
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "value", _per_scenario("constant delay", self.value))
+        value = _per_scenario("constant delay", self.value)
+        if np.any(value < 0):
+            raise ValueError(f"constant delay must be non-negative, got {value}")
+        object.__setattr__(self, "value", value)
         if math.isnan(self.bound):
             object.__setattr__(self, "bound", float(np.max(self.value)))
 

@@ -1,0 +1,68 @@
+"""The ``teleopkit`` command line, run as a user would (a real subprocess)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+
+REQUIRED = ["t", "ql_1", "ql_2", "qr_1", "qr_2", "theta_1", "theta_2", "Tl", "Tr", "e_track_1",
+            "e_track_2", "e_damp_1", "e_damp_2"]
+
+
+def teleopkit(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "teleopkit.cli", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_simulate_writes_csv_and_figure(tmp_path):
+    out, png = tmp_path / "run.csv", tmp_path / "run.png"
+    done = teleopkit("simulate", "--kr", "10", "--br", "30", "--duration", "2",
+                     "--delay", "constant:0.3", "--out", str(out), "--plot", str(png))
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(out)
+    assert set(REQUIRED) <= set(table.columns)
+    assert len(table) == 201 and table["Tl"].eq(0.3).all()
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_simulate_reads_a_delay_trace(tmp_path):
+    trace = tmp_path / "trace.csv"
+    trace.write_text("t,delay\n0,0.1\n1,0.4\n")
+    out = tmp_path / "run.csv"
+    done = teleopkit("simulate", "--kr", "10,12", "--br", "30", "--duration", "1",
+                     "--delay", f"csv:{trace}", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(out)
+    assert table["Tl"].iloc[-1] == pytest.approx(0.4)
+    assert table["Kr_2"].eq(12).all()
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--kr", "-1", "--br", "30"], "--kr"),
+    (["--kr", "nan", "--br", "30"], "--kr"),
+    (["--kr", "10", "--br", "1,2,3"], "--br"),
+    (["--kr", "10", "--br", "30", "--dt", "0"], "integration step"),
+    (["--kr", "10", "--br", "30", "--dt", "-0.001"], "integration step"),
+    (["--kr", "10", "--br", "30", "--duration", "0"], "duration"),
+    (["--kr", "10", "--br", "30", "--delay", "csv:/no/such/file.csv"], "cannot read"),
+    (["--kr", "10", "--br", "30", "--delay", "warp:3"], "unknown delay spec"),
+    (["--kr", "10", "--br", "30", "--delay", "constant:-0.5"], "non-negative"),
+    (["--kr", "10"], "--br"),
+])
+def test_bad_input_exits_2_with_one_line(tmp_path, args, needle):
+    done = teleopkit("simulate", *args, "--out", str(tmp_path / "x.csv"))
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_malformed_trace_exits_2(tmp_path):
+    trace = tmp_path / "bad.csv"
+    trace.write_text("t,delay\n1,0.1\n0,0.2\n")
+    done = teleopkit("simulate", "--kr", "10", "--br", "30", "--delay", f"csv:{trace}",
+                     "--out", str(tmp_path / "x.csv"))
+    assert done.returncode == 2 and "strictly increasing" in done.stderr
