@@ -80,7 +80,7 @@ class DelayChannel:
 
     def read(self, offset: float, delay: np.ndarray, latest: tuple[np.ndarray, np.ndarray],
              ) -> np.ndarray:
-        """Return the signal at ``t - delay`` where ``t = t_k + offset`` and ``t_k`` is the newest sample.
+        """Return the signal at ``t - delay``, ``t = t_k + offset``, ``t_k`` the newest sample.
 
         Parameters
         ----------

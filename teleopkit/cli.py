@@ -21,7 +21,8 @@ def _gain_vector(value: str, name: str, n_joints: int = 2) -> list[float]:
     try:
         numbers = [float(x) for x in value.split(",")]
     except ValueError:
-        raise click.BadParameter(f"{name} must be a number or a comma list, got {value!r}") from None
+        message = f"{name} must be a number or a comma list, got {value!r}"
+        raise click.BadParameter(message) from None
     if len(numbers) == 1:
         numbers *= n_joints
     if len(numbers) != n_joints:

@@ -5,7 +5,8 @@ Paper eqs. (4)-(5), gains diagonal per joint:
 * local: ``tau_l = K_l (q_l - theta_r(t - T_r)) + B_l q_l'``
 * remote: ``tau_r = -K_r (theta_r - q_l(t - T_l)) - B_r theta_r'``
 * operator: ``tau_h = K_s (q_h - q_l) - K_d q_l'``
-* environment: ``tau_e = 0`` in free space, a one-sided spring-damper at a :class:`~teleopkit.params.Wall`.
+* environment: ``tau_e = 0`` in free space, a one-sided spring-damper at a
+  :class:`~teleopkit.params.Wall`.
 
 Motor torques saturate at ``+- torque_limit``.
 """

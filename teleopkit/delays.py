@@ -3,8 +3,8 @@
 A profile is a frozen dataclass with a declared upper bound ``bound`` (seconds) and a method
 ``sample(t)`` returning the delay at the times ``t`` for each scenario of a batch: shape ``(S, B)``,
 where ``B`` is the profile's own batch size (1 when it is the same for every scenario, and then it
-broadcasts). ``sample`` checks that every value lies in ``[0, bound]`` and is finite, so a profile can
-never exceed the bound that the certificate and the channel buffers were sized for.
+broadcasts). ``sample`` checks that every value lies in ``[0, bound]`` and is finite, so a profile
+can never exceed the bound that the certificate and the channel buffers were sized for.
 
 Profiles: :class:`FourierDelay` (the paper's Fig. 3), :class:`ConstantDelay`,
 :class:`SinusoidalDelay`, :class:`SwitchingDelay` (bounded random, including fast adversarial
@@ -106,7 +106,7 @@ def _times(t: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class FourierDelay:
-    """The paper's delay ``T(t) = scale * y(t)`` with ``y`` the 16-harmonic Fourier series of Fig. 3.
+    """The paper's delay ``T(t) = scale * y(t)``, ``y`` the 16-harmonic Fourier series of Fig. 3.
 
     Parameters
     ----------
@@ -243,7 +243,7 @@ class SwitchingDelay:
     batch: int = 1
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.low) and math.isfinite(self.high) and 0 <= self.low <= self.high):
+        if not (math.isfinite(self.high) and 0 <= self.low <= self.high):
             raise ValueError(f"switching delay needs 0 <= low <= high, got {self.low}, {self.high}")
         if not math.isfinite(self.dwell) or self.dwell <= 0:
             raise ValueError(f"switching delay dwell must be positive, got {self.dwell}")
@@ -373,11 +373,14 @@ def parse_delay(spec: str, rng: np.random.Generator | None = None,
         if kind == "constant" and len(numbers) == 1:
             return ConstantDelay(numbers[0]), ConstantDelay(numbers[0])
         if kind == "sine" and len(numbers) == 3:
-            return SinusoidalDelay(*numbers), SinusoidalDelay(*numbers, phase=np.pi / 2)
+            mean, amplitude, frequency = numbers
+            return (SinusoidalDelay(mean, amplitude, frequency),
+                    SinusoidalDelay(mean, amplitude, frequency, phase=np.pi / 2))
         if kind == "switching" and len(numbers) == 3:
+            low, high, dwell = numbers
             seed = int(rng.integers(2**31))
-            return (SwitchingDelay(*numbers, mode="extremes", seed=seed),
-                    SwitchingDelay(*numbers, mode="extremes", seed=seed + 1))
+            return (SwitchingDelay(low, high, dwell, "extremes", seed),
+                    SwitchingDelay(low, high, dwell, "extremes", seed + 1))
     except ValueError as error:
         if "could not convert" not in str(error):
             raise

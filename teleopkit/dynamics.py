@@ -3,8 +3,8 @@
 With absolute link angles ``phi = T q`` (``T`` lower-triangular ones) the inertia is
 ``M_abs[i, j] = a_ij cos(phi_i - phi_j)`` with ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``, and
 ``M(q) = T^T M_abs T``. The Coriolis matrix ``C = T^T C_abs T`` with
-``C_abs[i, j] = a_ij sin(phi_i - phi_j) phi_j'`` makes ``M' - 2C`` skew-symmetric. For two links this
-is the paper's ``M11 = l2^2 m2 + l1^2 (m1 + m2) + 2 l1 l2 m2 cos q2`` and
+``C_abs[i, j] = a_ij sin(phi_i - phi_j) phi_j'`` makes ``M' - 2C`` skew-symmetric. For two links
+this is the paper's ``M11 = l2^2 m2 + l1^2 (m1 + m2) + 2 l1 l2 m2 cos q2`` and
 ``C = beta sin q2 [[-q2', -(q1' + q2')], [q1', 0]]`` with ``beta = l1 l2 m2``.
 
 All functions accept any leading batch axes: ``q`` has shape ``(..., n)``.

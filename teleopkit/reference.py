@@ -13,7 +13,7 @@ import numpy as np
 from teleopkit.channel import DelayChannel
 from teleopkit.control import environment_torque, local_torque, operator_torque, remote_torque
 from teleopkit.dynamics import coriolis_matrix, mass_matrix
-from teleopkit.params import TeleoperatorParams
+from teleopkit.params import PlanarArm, TeleoperatorParams
 
 __all__ = ["ReferenceIntegrator"]
 
@@ -50,7 +50,7 @@ class ReferenceIntegrator:
 
     def advance(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray,
                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Integrate ``gains.shape[0]`` control periods (arguments as :func:`teleopkit._kernel.advance`).
+        """Integrate ``gains.shape[0]`` control periods (arguments as ``_kernel.advance``).
 
         Returns
         -------
@@ -124,7 +124,7 @@ class ReferenceIntegrator:
         return np.concatenate([dql, ddql, dqr, ddqr, dth, ddth, th - ql_delayed, th - qr], axis=1)
 
     @staticmethod
-    def _acceleration(arm, q: np.ndarray, dq: np.ndarray,  # type: ignore[no-untyped-def]
+    def _acceleration(arm: PlanarArm, q: np.ndarray, dq: np.ndarray,
                       torque: np.ndarray) -> np.ndarray:
         coriolis = np.einsum("bij,bj->bi", coriolis_matrix(arm, q, dq), dq)
         return np.linalg.solve(mass_matrix(arm, q), (torque - coriolis)[..., None])[..., 0]

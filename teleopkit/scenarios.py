@@ -62,7 +62,7 @@ class Scenario:
 
 
 def sample_reference_gains(rng: np.random.Generator, batch: int, n_joints: int = 2) -> np.ndarray:
-    """Draw reference gains uniformly from ``[-1, -0.5] U [0.5, 1]``, shape ``(batch, n_joints)``."""
+    """Draw reference gains uniformly on ``[-1, -0.5] U [0.5, 1]``, shape ``(batch, n_joints)``."""
     magnitude = rng.uniform(0.5, 1.0, size=(batch, n_joints))
     return np.where(rng.random((batch, n_joints)) < 0.5, -magnitude, magnitude)
 
@@ -83,7 +83,7 @@ def paper_scenarios(rng: np.random.Generator | int = 0, batch: int = 1,
     Returns
     -------
     Scenario
-        Scenarios with Fourier delays scaled by ``U[0.5, 1]`` per channel and random reference gains.
+        Fourier delays scaled by ``U[0.5, 1]`` per channel and random reference gains.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """Batched fixed-step simulator of the delayed teleoperator.
 
 The remote gains are held over each control period (10 ms by default) and the model is integrated
-with RK4 at a fixed step (2.5 ms by default, below the 5 ms where RK4 loses stability on this model).
+with RK4 at a fixed step (2.5 ms by default, below the 5 ms where RK4 loses stability here).
 Delays and the operator reference are sampled at every half step in numpy; the compiled kernel
 (``backend="compiled"``) or the numpy reference (``backend="reference"``) integrates. A batch of
 scenarios shares the model; the batch axis comes first in every array.
@@ -292,9 +292,11 @@ class Simulator:
         per_chunk = max(1, round(chunk / self.control_period))
         for start in range(0, periods, per_chunk):
             parts.append(self.advance(gains[start:start + per_chunk]))
-        return Trajectory(*(np.concatenate([getattr(p, f) for p in parts])
-                            for f in ("t", "state", "delayed", "delays")),
-                          gains=np.concatenate([gains[:1], gains]))
+        def joined(name: str) -> np.ndarray:
+            return np.concatenate([getattr(part, name) for part in parts])
+
+        return Trajectory(t=joined("t"), state=joined("state"), delayed=joined("delayed"),
+                          delays=joined("delays"), gains=np.concatenate([gains[:1], gains]))
 
 
 def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
