@@ -20,6 +20,7 @@ __all__ = [
     "coriolis_matrix",
     "inertia_coefficients",
     "kinetic_energy",
+    "mass_from_cosines",
     "mass_matrix",
     "mass_matrix_derivative",
     "remote_energy",
@@ -60,8 +61,27 @@ def mass_matrix(arm: PlanarArm, q: np.ndarray) -> np.ndarray:
         Symmetric positive definite inertia matrix.
     """
     phi = _absolute(np.asarray(q, dtype=float))
-    diff = phi[..., :, None] - phi[..., None, :]
-    return _to_joint(inertia_coefficients(arm) * np.cos(diff))
+    return mass_from_cosines(arm, np.cos(phi[..., :, None] - phi[..., None, :]))
+
+
+def mass_from_cosines(arm: PlanarArm, cosines: np.ndarray) -> np.ndarray:
+    """Inertia matrix from the cosines ``cos(phi_i - phi_j)`` of the relative link angles.
+
+    ``M`` is affine in these cosines, which is what makes inertia polytopes exact.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    cosines : ndarray, shape (..., n, n)
+        Symmetric matrix of cosines with ones on the diagonal.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        The inertia matrix.
+    """
+    return _to_joint(inertia_coefficients(arm) * cosines)
 
 
 def coriolis_matrix(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
