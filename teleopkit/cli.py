@@ -71,6 +71,49 @@ def simulate(kr: str, br: str, duration: float, delay: str, seed: int, dt: float
     click.echo(f"wrote {len(table)} rows to {out}; RMS tracking error {rms:.4g} rad")
 
 
+@cli.command()
+@click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
+@click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
+@click.option("--kl", type=float, default=25.0, show_default=True, help="Local gain K_l.")
+@click.option("--bl", type=float, default=10.0, show_default=True, help="Local damping B_l.")
+@click.option("--tl-max", type=float, default=1.0, show_default=True,
+              help="Forward delay bound T_l* [s].")
+@click.option("--tr-max", type=float, default=1.0, show_default=True,
+              help="Backward delay bound T_r* [s].")
+@click.option("--method", type=click.Choice(["nuno", "lmi", "all"]), default="all",
+              show_default=True, help="Closed form, LMI analysis, or both.")
+@click.option("--gain-variation", "variation", default="frozen", show_default=True,
+              help="frozen | switching | rate:R (R in gain units per second).")
+@click.option("--json", "as_json", is_flag=True, help="Print the certificate as JSON.")
+def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, tr_max: float,
+            method: str, variation: str, as_json: bool) -> int:
+    """Certify that every remote gain in the ranges is stable for the delay bounds."""
+    from dataclasses import replace
+
+    from teleopkit.certification import certify_gains, parse_gain_variation
+    from teleopkit.gains import GainBox, parse_range
+    from teleopkit.params import PDGains, paper_setup
+    from teleopkit.report import certificate_table
+
+    params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
+    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
+    gain_variation = parse_gain_variation(variation)
+    names = ["nuno", "lmi"] if method == "all" else [method]
+    if method == "all" and gain_variation.kind != "frozen":
+        names = ["lmi"]
+    results = [certify_gains(params, box, tl_max, tr_max, name, gain_variation) for name in names]
+    best = max(results, key=lambda c: (c.certified, c.delay_margin))
+    if as_json:
+        import json
+
+        payload = best.to_dict()
+        payload["results"] = [c.to_dict() for c in results]
+        click.echo(json.dumps(payload, indent=2))
+    else:
+        click.echo(certificate_table(results))
+    return 0 if best.certified else 1
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line and return its exit code (bad input: 2, one line, no traceback).
 

@@ -66,3 +66,42 @@ def test_malformed_trace_exits_2(tmp_path):
     done = teleopkit("simulate", "--kr", "10", "--br", "30", "--delay", f"csv:{trace}",
                      "--out", str(tmp_path / "x.csv"))
     assert done.returncode == 2 and "strictly increasing" in done.stderr
+
+
+def test_certify_nuno_certified_and_json(tmp_path):
+    done = teleopkit("certify", "--kr", "5:10", "--br", "30:60", "--method", "nuno", "--json")
+    assert done.returncode == 0, done.stderr
+    import json
+
+    payload = json.loads(done.stdout)
+    assert payload["certified"] is True and payload["method"] == "nuno"
+    assert payload["gain_variation"] == "frozen"
+    assert payload["delay_margin"] == pytest.approx((10 * 30 / (25 * 10)) ** 0.5)
+    assert len(payload["polytope"]["G"]) == len(payload["polytope"]["h"])
+
+
+def test_certify_not_certified_names_the_violation():
+    done = teleopkit("certify", "--kr", "1:50", "--br", "1:150", "--method", "nuno")
+    assert done.returncode == 1
+    assert "NOT CERTIFIED" in done.stdout and "joint 1 at K_r = 50, B_r = 1" in done.stdout
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--kr", "50:1", "--br", "1:150"], "inverted"),
+    (["--kr", ":", "--br", "1:150"], "--kr"),
+    (["--kr", "1:5", "--br", "-1:150"], "non-negative"),
+    (["--kr", "1:5", "--br", "nan:150"], "finite"),
+    (["--kr", "1:5", "--br", "1:150", "--tl-max", "0"], "T_l*"),
+    (["--kr", "1:5", "--br", "1:150", "--tr-max", "-1"], "T_r*"),
+    (["--kr", "1:5", "--br", "1:150", "--kl", "-3"], "proportional gain"),
+    (["--kr", "1:5", "--br", "1:150", "--method", "magic"], "--method"),
+    (["--kr", "1:5", "--br", "1:150", "--gain-variation", "rate:-2"], "rate"),
+    (["--kr", "1:5", "--br", "1:150", "--gain-variation", "sometimes"], "gain variation"),
+    (["--kr", "1:5", "--br", "1:150", "--method", "nuno", "--gain-variation", "switching"],
+     "frozen gains only"),
+])
+def test_certify_bad_input_exits_2(args, needle):
+    done = teleopkit("certify", *args)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], done.stderr
