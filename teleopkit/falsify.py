@@ -1,10 +1,11 @@
 """Falsification: nonlinear simulations with adversarial delays and gains inside a certified set.
 
-Evidence, never proof: a batch of scenarios is run with delays switching between ``0`` and the bound
-as fast as the control loop (bang-bang), and remote gains drawn inside the certified polytope, either
-frozen per scenario or switching to a random vertex every control period. A scenario counts as
-diverged if its state becomes non-finite or a position leaves ``divergence_radius``, and as growing
-if the largest position over the last quarter of the run exceeds that over the second quarter.
+Evidence, never proof: a batch of scenarios is run with delays switching between ``0`` and the
+bound as fast as the control loop (bang-bang) or held at the bound, and with remote gains inside
+the certified polytope, either frozen per scenario or jumping to a random vertex every control
+period. A scenario counts as diverged if its state becomes non-finite or a position leaves
+``divergence_radius``, or if the largest position over the last quarter of the run exceeds that
+over the second quarter (growth).
 """
 
 from __future__ import annotations
