@@ -5,6 +5,7 @@ LMI conditions (package :mod:`certify`), and tune the remote P+d gains with a TD
 action is projected into the certified set.
 """
 
+from teleopkit import env  # noqa: F401  (registers the Gymnasium id teleopkit/FlexTeleop-v0)
 from teleopkit.delays import (
     ConstantDelay,
     FourierDelay,

@@ -1,0 +1,471 @@
+"""Gymnasium environments for certified-safe tuning of the remote gains.
+
+:class:`FlexTeleopEnv` (registered as ``teleopkit/FlexTeleop-v0``) is one teleoperator;
+:class:`FlexTeleopVectorEnv` runs ``B`` of them in one batched :class:`~teleopkit.Simulator` with
+one batched safety projection, for fast experience collection.
+
+Per control period (10 ms by default) the agent proposes remote gains
+``a = [K_r^1..K_r^n, B_r^1..B_r^n]``; every action passes through the
+:class:`~teleopkit.safety.SafetyLayer` of the environment's certificate before it reaches the
+simulator, and the environment counts applied actions outside the certified set
+(:attr:`FlexTeleopEnv.unsafe_actions`, which must stay 0).
+
+Observation (``7 n`` values, DESIGN.md section 6) at the end of each period::
+
+    [theta_r, theta_r', q_l(t - T_l), e_track, int e_track, e_damp, int e_damp]
+
+with ``e_track = theta_r - q_l(t - T_l)`` and ``e_damp = theta_r - q_r``. At ``t = 0`` the delayed
+signal is the constant past ``q_l(0)``.
+
+Each episode draws a scenario with :func:`~teleopkit.scenarios.paper_scenarios` from the
+environment's seeded generator (operator reference gains and delay scales). The time limit is a
+truncation; a non-finite state or one leaving ``state_bound`` terminates with ``-failure_penalty``
+(which should never happen with certified gains).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.gains import GainBox
+from teleopkit.params import TeleoperatorParams, paper_setup
+from teleopkit.safety import SafetyLayer
+from teleopkit.scenarios import paper_scenarios
+from teleopkit.simulator import Simulator
+
+__all__ = [
+    "DEFAULT_BOX",
+    "ENV_ID",
+    "FlexTeleopConfig",
+    "FlexTeleopEnv",
+    "FlexTeleopVectorEnv",
+    "RewardWeights",
+    "default_certificate",
+]
+
+ENV_ID = "teleopkit/FlexTeleop-v0"
+"""Gymnasium id of :class:`FlexTeleopEnv` (vector entry point :class:`FlexTeleopVectorEnv`)."""
+
+DEFAULT_BOX = ((1.0, 50.0), (1.0, 150.0))
+"""Default ``(K_r, B_r)`` ranges of every joint: the action space of the environments."""
+
+
+def default_certificate(params: TeleoperatorParams | None = None,
+                        delay_bound: float = 1.0) -> GainCertificate:
+    """Closed-form (Nuño) certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
+
+    The box itself is not certified (at ``K_r = 50`` it needs ``B_r >= 125`` for 1 s delays);
+    the certificate's polytope, the box cut by the closed-form half-plane of each joint, is, and it
+    is what the safety layer projects onto.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams, optional
+        Teleoperator; the paper's by default.
+    delay_bound : float
+        ``T_l* = T_r*`` in seconds.
+
+    Returns
+    -------
+    GainCertificate
+        The ``"nuno"`` certificate for frozen gains.
+    """
+    params = params if params is not None else paper_setup()
+    box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
+    return certify_gains(params, box, delay_bound, delay_bound, method="nuno")
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the reward ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
+
+    The defaults make the three terms equal on average under the paper's fixed gains
+    ``K_r = 10, B_r = 30`` on the paper scenario (16 scenarios of 40 s, seed 0), so each is about a
+    third of the reward and the reward is about -3 per step there. Measured per-step means:
+    ``||e_track||^2 = 0.0635 rad^2``, ``||e_damp||^2 = 1.29e-4 rad^2`` and ``||a||^2 = 2000``,
+    hence ``alpha = 16 ~ 1/0.0635``, ``beta = 8000 ~ 1/1.29e-4`` and ``gamma = 5e-4 = 1/2000``.
+    The damping error is concentrated in the first seconds (the initial deflection
+    ``q_r(0) != theta_r(0)`` rings down; afterwards it is about 1e-8 rad^2), the tracking error
+    follows the operator's decaying motion, and the gain term prices stiff, heavily damped
+    settings (``||a||^2`` ranges from about 15 to 50 000 over the default box).
+
+    Parameters
+    ----------
+    alpha : float
+        Weight of the squared tracking error ``theta_r - q_l(t - T_l)``.
+    beta : float
+        Weight of the squared damping error ``theta_r - q_r``.
+    gamma : float
+        Weight of the squared applied gains.
+    """
+
+    alpha: float = 16.0
+    beta: float = 8000.0
+    gamma: float = 5e-4
+
+    def __post_init__(self) -> None:
+        for name in ("alpha", "beta", "gamma"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"reward weight {name} must be finite and >= 0, got {value}")
+
+    def reward(self, e_track: np.ndarray, e_damp: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """Reward of each scenario.
+
+        Parameters
+        ----------
+        e_track : ndarray, shape (..., n)
+            Tracking error.
+        e_damp : ndarray, shape (..., n)
+            Damping error.
+        action : ndarray, shape (..., 2 n)
+            Applied gains.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
+        """
+        return -(self.alpha * np.sum(e_track**2, axis=-1) + self.beta * np.sum(e_damp**2, axis=-1)
+                 + self.gamma * np.sum(action**2, axis=-1))
+
+
+@dataclass(frozen=True)
+class FlexTeleopConfig:
+    """Settings shared by :class:`FlexTeleopEnv` and :class:`FlexTeleopVectorEnv`.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (the paper's by default).
+    certificate : GainCertificate, optional
+        Certificate whose polytope the safety layer projects onto; it must be for ``params``.
+        Default: :func:`default_certificate` of ``params`` (closed form, ``T* = 1 s``).
+    episode_length : float
+        Episode duration in seconds (truncation), rounded to whole control periods.
+    control_period : float
+        Gain hold period (agent sample time) in seconds.
+    dt : float
+        Integration step in seconds.
+    weights : RewardWeights
+        Reward weights.
+    state_bound : float
+        Largest admissible absolute value of any state entry before termination.
+    failure_penalty : float
+        Reward ``-failure_penalty`` on termination: an order of magnitude beyond the discounted
+        return of a whole episode at discount 0.99 (about -3000 under ``K_r = 10, B_r = 30``,
+        mostly the opening transient; -7500 at the stiffest corner ``K_r = 50, B_r = 150``), so
+        ending an episode never pays.
+    """
+
+    params: TeleoperatorParams = field(default_factory=paper_setup)
+    certificate: GainCertificate | None = None
+    episode_length: float = 40.0
+    control_period: float = 0.01
+    dt: float = 0.0025
+    weights: RewardWeights = field(default_factory=RewardWeights)
+    state_bound: float = 1e3
+    failure_penalty: float = 1e5
+
+    def __post_init__(self) -> None:
+        for name in ("episode_length", "control_period", "dt", "state_bound", "failure_penalty"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be positive and finite, got {value}")
+        if round(self.episode_length / self.control_period) < 1:
+            raise ValueError("the episode must last at least one control period")
+
+    @property
+    def max_steps(self) -> int:
+        """Control periods per episode."""
+        return round(self.episode_length / self.control_period)
+
+
+def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:
+    """``config`` (default settings if None) with the given fields replaced."""
+    return replace(config if config is not None else FlexTeleopConfig(), **overrides)
+
+
+class _TeleopBatch:
+    """Scenario draws, safety projection, simulation, observation and reward for ``B`` scenarios.
+
+    Shared by both environments; all of its arrays carry the batch axis first.
+    """
+
+    def __init__(self, config: FlexTeleopConfig, batch: int) -> None:
+        self.config = config
+        self.batch = batch
+        self.certificate = (config.certificate if config.certificate is not None
+                            else default_certificate(config.params))
+        self.layer = SafetyLayer.from_certificate(self.certificate, config.control_period)
+        self.n = config.params.n_joints
+        self.unsafe_actions = 0
+        self.steps = 0
+        self._sim: Simulator | None = None
+        self._applied: np.ndarray | None = None
+
+    def start(self, rng: np.random.Generator) -> np.ndarray:
+        """Draw new scenarios, restart the simulator and return the first observations."""
+        scenario = paper_scenarios(rng, self.batch, self.config.params)
+        self._sim = Simulator(scenario, self.config.dt, self.config.control_period)
+        self._applied = None
+        self.steps = 0
+        state = self._sim.state
+        return self._observe(state, state[:, :self.n])
+
+    def _observe(self, state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
+        n = self.n
+        theta = state[:, 4 * n:5 * n]
+        return np.concatenate([theta, state[:, 5 * n:6 * n], delayed_ql, theta - delayed_ql,
+                               state[:, 6 * n:7 * n], theta - state[:, 2 * n:3 * n],
+                               state[:, 7 * n:8 * n]], axis=1)
+
+    def step(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                             dict[str, np.ndarray]]:
+        """Project, simulate and score one period: obs, reward, terminated, truncated, info."""
+        if self._sim is None:
+            raise RuntimeError("call reset() before step()")
+        raw = np.array(raw, dtype=np.float64).reshape(self.batch, 2 * self.n)
+        projection = self.layer.project_batch(raw, self._applied)
+        applied = projection.action
+        self.unsafe_actions += int(np.count_nonzero(~self.layer.polytope.contains(applied)))
+        self._applied = applied
+        result = self._sim.advance(applied)
+        self.steps += 1
+        state = result.state[0]
+        obs = self._observe(state, result.delayed[0, :, 0])
+        n = self.n
+        reward = self.config.weights.reward(obs[:, 3 * n:4 * n], obs[:, 5 * n:6 * n], applied)
+        bound = self.config.state_bound
+        failed = ~np.all(np.abs(state) <= bound, axis=1)
+        if failed.any():
+            reward = np.where(failed, -self.config.failure_penalty, reward)
+            obs = np.clip(np.nan_to_num(obs), -bound, bound)
+        truncated = np.full(self.batch, self.steps >= self.config.max_steps) & ~failed
+        info = {"raw_action": raw, "applied_action": applied,
+                "projection_distance": projection.distance,
+                "fallback": projection.fallback != 0, "fallback_flags": projection.fallback,
+                "active_constraints": projection.active, "time": np.full(self.batch, result.t[0]),
+                "delays": result.delays[0]}
+        return obs, reward, failed, truncated, info
+
+
+def _spaces(config: FlexTeleopConfig,
+            certificate: GainCertificate) -> tuple[spaces.Box, spaces.Box]:
+    """Action space (the certificate's gain box) and observation space of one scenario.
+
+    Every observation entry is a state entry or the difference of two, and the episode ends
+    once a state entry exceeds ``state_bound``, so observations lie within twice that bound.
+    """
+    box = certificate.box
+    limit = 2 * config.state_bound
+    action = spaces.Box(box.lower, box.upper, dtype=np.float64)
+    observation = spaces.Box(-limit, limit, shape=(7 * box.n_joints,), dtype=np.float64)
+    return action, observation
+
+
+class FlexTeleopEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+    """One teleoperator whose remote gains an agent retunes every control period.
+
+    Create it with ``gymnasium.make("teleopkit/FlexTeleop-v0", episode_length=2.0)`` (after
+    ``import teleopkit``) or directly. Keyword arguments override fields of ``config``.
+
+    Parameters
+    ----------
+    config : FlexTeleopConfig, optional
+        Settings; the defaults of :class:`FlexTeleopConfig` if omitted.
+    **overrides
+        Fields of :class:`FlexTeleopConfig` to replace (for example ``episode_length=2.0``).
+
+    Attributes
+    ----------
+    safety_layer : SafetyLayer
+        Projection onto the certificate's polytope applied to every action.
+    certificate : GainCertificate
+        The certificate in force.
+
+    Notes
+    -----
+    ``step`` returns ``info`` with ``raw_action``, ``applied_action``, ``projection_distance``,
+    ``fallback`` (bool), ``fallback_flags`` (:class:`~teleopkit.safety.Fallback`),
+    ``active_constraints`` (mask over the polytope's rows; labels via
+    ``safety_layer.active_labels``), ``time`` and ``delays``. The previous applied action is the
+    centre of a rate-bounded certificate's rate box and the fallback for non-finite actions.
+    """
+
+    def __init__(self, config: FlexTeleopConfig | None = None, **overrides: Any) -> None:
+        super().__init__()
+        self.config = _config(config, overrides)
+        self._core = _TeleopBatch(self.config, 1)
+        self.safety_layer = self._core.layer
+        self.certificate = self._core.certificate
+        self.action_space, self.observation_space = _spaces(self.config, self.certificate)
+
+    @property
+    def unsafe_actions(self) -> int:
+        """Applied actions outside the certified set since construction (must stay 0)."""
+        return self._core.unsafe_actions
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode with a freshly drawn scenario.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the environment's generator (scenario draws).
+        options : dict, optional
+            Unused.
+
+        Returns
+        -------
+        observation : ndarray, shape (7 n,)
+            Observation at ``t = 0``.
+        info : dict
+            Empty.
+        """
+        super().reset(seed=seed)
+        return self._core.start(self.np_random)[0], {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Project the action, simulate one control period and score it.
+
+        Parameters
+        ----------
+        action : ndarray, shape (2 n,)
+            Raw gains ``[K_r..., B_r...]`` (any values, NaN and inf included).
+
+        Returns
+        -------
+        observation : ndarray, shape (7 n,)
+            Observation at the end of the period.
+        reward : float
+            See :class:`RewardWeights` (``-failure_penalty`` on termination).
+        terminated : bool
+            The state became non-finite or left ``state_bound``.
+        truncated : bool
+            The episode reached ``episode_length``.
+        info : dict
+            Projection report (see the class notes).
+        """
+        obs, reward, terminated, truncated, info = self._core.step(action)
+        return (obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
+                {key: value[0] for key, value in info.items()})
+
+
+class FlexTeleopVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
+    """``num_envs`` teleoperators simulated together (one batched simulator and projection).
+
+    All sub-environments share the clock, so their episodes start and end together: at the time
+    limit all are truncated; if one terminates (a failure, which should never happen with
+    certified gains) the others are truncated at the same step. Autoreset follows Gymnasium's
+    next-step mode: the step after the end ignores the actions and returns the first
+    observations of new scenarios with zero reward.
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of scenarios ``B``.
+    config : FlexTeleopConfig, optional
+        Settings; the defaults of :class:`FlexTeleopConfig` if omitted.
+    **overrides
+        Fields of :class:`FlexTeleopConfig` to replace.
+
+    Attributes
+    ----------
+    safety_layer : SafetyLayer
+        Projection onto the certificate's polytope applied to every action.
+    certificate : GainCertificate
+        The certificate in force.
+    """
+
+    def __init__(self, num_envs: int = 8, config: FlexTeleopConfig | None = None,
+                 **overrides: Any) -> None:
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
+        self.metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+        self.num_envs = num_envs
+        self.config = _config(config, overrides)
+        self._core = _TeleopBatch(self.config, num_envs)
+        self.safety_layer = self._core.layer
+        self.certificate = self._core.certificate
+        single_action, single_observation = _spaces(self.config, self.certificate)
+        self.single_action_space, self.single_observation_space = single_action, single_observation
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self._ended = False
+
+    @property
+    def unsafe_actions(self) -> int:
+        """Applied actions outside the certified set since construction (must stay 0)."""
+        return self._core.unsafe_actions
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start new episodes in every sub-environment.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the generator that draws all scenarios.
+        options : dict, optional
+            Unused.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 7 n)
+            Observations at ``t = 0``.
+        info : dict
+            Empty.
+        """
+        super().reset(seed=seed)
+        self._ended = False
+        return self._core.start(self.np_random), {}
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                 dict[str, Any]]:
+        """Step every sub-environment (or autoreset them all after the episodes ended).
+
+        Parameters
+        ----------
+        actions : ndarray, shape (num_envs, 2 n)
+            Raw gains of each sub-environment.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 7 n)
+            Observations.
+        rewards : ndarray, shape (num_envs,)
+            Rewards (0 on an autoreset step).
+        terminations : ndarray of bool, shape (num_envs,)
+            Failures.
+        truncations : ndarray of bool, shape (num_envs,)
+            Episode ends by time limit (or by another sub-environment's failure).
+        info : dict
+            Batched projection report (see :class:`FlexTeleopEnv`), each key with its ``_key``
+            mask; empty on an autoreset step.
+        """
+        if self._ended:
+            self._ended = False
+            none = np.zeros(self.num_envs, dtype=bool)
+            return self._core.start(self.np_random), np.zeros(self.num_envs), none, none, {}
+        obs, reward, terminated, truncated, info = self._core.step(actions)
+        if terminated.any() or truncated.any():
+            truncated = ~terminated
+            self._ended = True
+        masks = {f"_{key}": np.ones(self.num_envs, dtype=bool) for key in info}
+        return obs, reward, terminated, truncated, {**info, **masks}
+
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(id=ENV_ID, entry_point="teleopkit.env:FlexTeleopEnv",
+                       vector_entry_point="teleopkit.env:FlexTeleopVectorEnv")
