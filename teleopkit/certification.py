@@ -4,9 +4,9 @@
 with a :class:`GainCertificate`: the verdict, the admissible polytope inside the box (what the
 safety layer projects onto), the delay margin of the box and the assumptions the verdict rests on.
 
-Methods: ``"nuno"``, the closed form of :mod:`teleopkit.closed_form` (nonlinear model, frozen
-gains), and ``"lmi"``, the Lyapunov–Krasovskii / LMI analysis of the linearisation in
-:mod:`teleopkit.lmi_bridge`. Gain classes: ``"frozen"`` (every constant gain in the set),
+Method: ``"nuno"``, the closed form of :mod:`teleopkit.closed_form` (nonlinear model, frozen
+gains); the LMI analysis of the linearisation (package :mod:`certify`) joins it as a second method.
+Gain classes: ``"frozen"`` (every constant gain in the set),
 ``"switching"`` (gains changing arbitrarily fast inside the set) and ``"rate:R"`` (gains whose rate
 is at most ``R`` per second).
 """
@@ -27,7 +27,7 @@ from teleopkit.params import TeleoperatorParams
 
 __all__ = ["GainCertificate", "GainVariation", "certify_gains", "parse_gain_variation"]
 
-METHODS = ("nuno", "lmi")
+METHODS = ("nuno",)
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,7 @@ class GainCertificate:
     certified : bool
         Whether every gain of the box (varying as ``gain_variation`` says) is certified stable.
     method : str
-        ``"nuno"`` or ``"lmi"`` (with the LMI method in ``details``).
+        Certification method (``"nuno"``).
     gain_variation : str
         ``"frozen"``, ``"switching"`` or ``"rate:R"``.
     delay_bounds : tuple of float
@@ -153,8 +153,8 @@ def _json_float(value: float) -> float | str:
 def _certify_nuno(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
                   variation: GainVariation) -> GainCertificate:
     if variation.kind != "frozen":
-        raise ValueError("the closed form (nuno) covers frozen gains only; use --method lmi for "
-                         "switching or rate-bounded gains")
+        raise ValueError("the closed form (nuno) covers frozen gains only, not "
+                         f"{variation} gains")
     worst = np.concatenate([box.upper[:box.n_joints], box.lower[box.n_joints:]])
     slack = nuno_margins(params, worst, tl_max, tr_max)
     certified = bool(np.all(slack > 0))
@@ -182,8 +182,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         Remote gain ranges per joint.
     tl_max, tr_max : float
         Delay bounds in seconds (positive).
-    method : {"nuno", "lmi"}
-        Closed form or LMI analysis.
+    method : {"nuno"}
+        Certification method.
     variation : GainVariation or str
         Gain class: ``"frozen"``, ``"switching"`` or ``"rate:R"``.
 
@@ -206,8 +206,4 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
     if method == "nuno":
         return _certify_nuno(params, box, tl_max, tr_max, variation)
-    if method == "lmi":
-        from teleopkit.lmi_bridge import certify_lmi
-
-        return certify_lmi(params, box, tl_max, tr_max, variation)
-    raise ValueError(f"unknown method {method!r}; choose nuno, lmi or all")
+    raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
