@@ -13,6 +13,8 @@ from pathlib import Path
 import click
 import numpy as np
 
+from teleopkit.simulator import DEFAULT_DT
+
 __all__ = ["cli", "main"]
 
 
@@ -46,7 +48,8 @@ def cli() -> None:
               help="paper | constant:T | sine:MEAN:AMP:FREQ | switching:LOW:HIGH:DWELL | csv:PATH")
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Seed of the operator reference and the delay scales.")
-@click.option("--dt", type=float, default=0.0025, show_default=True, help="Integration step [s].")
+@click.option("--dt", type=float, default=DEFAULT_DT, show_default=True,
+              help="Integration step [s]; 1.25 ms is accurate to 1e-5 rad.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="CSV file for the trajectory.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,

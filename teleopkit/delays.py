@@ -47,9 +47,18 @@ PAPER_COS = np.array([
 
 
 def _paper_shape(t: np.ndarray) -> np.ndarray:
-    """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``."""
-    phase = 2.0 * np.pi * PAPER_F0 * np.multiply.outer(t, np.arange(1, PAPER_SIN.size + 1))
-    return PAPER_C0 + np.sin(phase) @ PAPER_SIN + np.cos(phase) @ PAPER_COS
+    """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``.
+
+    The harmonics come from the angle-addition recurrence, two trigonometric evaluations per time
+    instead of two per harmonic; equal to the direct sum to about ``1e-15`` s.
+    """
+    c1, s1 = np.cos(2.0 * np.pi * PAPER_F0 * t), np.sin(2.0 * np.pi * PAPER_F0 * t)
+    ck, sk = c1, s1
+    out = np.full(t.shape, PAPER_C0)
+    for a, b in zip(PAPER_SIN, PAPER_COS, strict=True):
+        out += a * sk + b * ck
+        ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
+    return out
 
 
 def _paper_maximum(points: int = 20001) -> float:
@@ -129,8 +138,12 @@ class FourierDelay:
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``, shape ``(S, B)``."""
-        values = _paper_shape(_times(t))[:, None] * np.asarray(self.scale)[None, :]
-        return _checked(self, values, self.bound)
+        shape = _paper_shape(_times(t))
+        scale = np.asarray(self.scale)
+        # The shape is positive and the scales non-negative, so the extremes of the products are
+        # those of the extreme shape values: checking two rows checks every value.
+        _checked(self, np.multiply.outer([shape.min(), shape.max()], scale), self.bound)
+        return np.multiply.outer(shape, scale)
 
 
 @dataclass(frozen=True)

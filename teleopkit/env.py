@@ -40,7 +40,7 @@ from teleopkit.gains import GainBox
 from teleopkit.params import TeleoperatorParams, paper_setup
 from teleopkit.safety import SafetyLayer
 from teleopkit.scenarios import paper_scenarios
-from teleopkit.simulator import Simulator
+from teleopkit.simulator import DEFAULT_DT, Simulator
 
 __all__ = [
     "DEFAULT_BOX",
@@ -171,7 +171,7 @@ class FlexTeleopConfig:
     certificate: GainCertificate | None = None
     episode_length: float = 40.0
     control_period: float = 0.01
-    dt: float = 0.0025
+    dt: float = DEFAULT_DT
     weights: RewardWeights = field(default_factory=RewardWeights)
     state_bound: float = 1e3
     failure_penalty: float = 1e5

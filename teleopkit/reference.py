@@ -50,7 +50,16 @@ class ReferenceIntegrator:
 
     def advance(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray,
                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Integrate ``gains.shape[0]`` control periods (arguments as ``_kernel.advance``).
+        """Integrate ``gains.shape[0]`` control periods.
+
+        Parameters
+        ----------
+        delays : ndarray, shape (2 P substeps + 1, B, 2)
+            Forward and backward delays (seconds) at every half step from the current time.
+        qh : ndarray, shape (2 P substeps + 1, B, n)
+            Operator reference at the same times.
+        gains : ndarray, shape (P, B, 2 n)
+            Remote gains ``[K_r, B_r]`` held over each control period.
 
         Returns
         -------

@@ -1,7 +1,7 @@
 """Batched fixed-step simulator of the delayed teleoperator.
 
 The remote gains are held over each control period (10 ms by default) and the model is integrated
-with RK4 at a fixed step (2.5 ms by default, below the 5 ms where RK4 loses stability here).
+with RK4 at a fixed step (:data:`DEFAULT_DT`, 1.25 ms, by default).
 Delays and the operator reference are sampled at every half step in numpy; the compiled kernel
 (``backend="compiled"``) or the numpy reference (``backend="reference"``) integrates. A batch of
 scenarios shares the model; the batch axis comes first in every array.
@@ -23,7 +23,12 @@ from teleopkit.params import TeleoperatorParams, paper_setup
 from teleopkit.reference import ReferenceIntegrator
 from teleopkit.scenarios import Scenario, sample_reference_gains
 
-__all__ = ["Simulator", "StepResult", "Trajectory", "check_gains", "simulate"]
+__all__ = ["DEFAULT_DT", "Simulator", "StepResult", "Trajectory", "check_gains", "simulate"]
+
+DEFAULT_DT = 0.00125
+"""Default integration step (s): 8 RK4 steps per 10 ms control period, at most 7e-6 rad from a
+converged solution over the paper's 40 s episode (2.5 ms, the largest step below RK4's stability
+limit of about 2.7 ms on this model, is 16 times less accurate; ``benchmarks/README.md``)."""
 
 Backend = Literal["compiled", "reference"]
 
@@ -148,7 +153,7 @@ class Simulator:
     ((3, 2, 16), 0.03)
     """
 
-    def __init__(self, scenario: Scenario, dt: float = 0.0025, control_period: float = 0.01,
+    def __init__(self, scenario: Scenario, dt: float = DEFAULT_DT, control_period: float = 0.01,
                  backend: Backend = "compiled") -> None:
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"integration step must be positive, got {dt}")
@@ -207,8 +212,8 @@ class Simulator:
             return
         self._x = x
         self._initial = np.stack([x[:, :n], x[:, 4 * n:5 * n]], axis=1)
-        self._hpos = np.repeat(self._initial[:, :, None, :], length, axis=2)
-        self._hvel = np.zeros_like(self._hpos)
+        self._hist = np.zeros((self.batch, 2, length, 2 * n))
+        self._hist[..., :n] = self._initial[:, :, None, :]
 
     def _initial_row(self) -> StepResult:
         """The record at ``t = 0`` (the delayed signals are the constant past)."""
@@ -220,11 +225,20 @@ class Simulator:
 
     def sample_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Delays ``(S, B, 2)`` and operator reference ``(S, B, n)`` at the times ``(S,)``."""
-        shape = (times.size, self.batch)
-        delays = np.stack([np.broadcast_to(self.scenario.forward.sample(times), shape),
-                           np.broadcast_to(self.scenario.backward.sample(times), shape)], axis=-1)
-        qh = self.scenario.params.operator.reference(times, self.scenario.reference_gains)
-        return np.ascontiguousarray(delays), qh
+        delays, unit = self._sample(times)
+        return np.moveaxis(delays, 0, -1), self.scenario.reference_gains[None] * unit[:, None]
+
+    def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delays ``(2, S, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
+
+        The reference of scenario ``b`` is ``G_b`` times the unit one (see
+        :class:`~teleopkit.params.Operator`), so it is evaluated once, not once per scenario.
+        """
+        delays = np.empty((2, times.size, self.batch))
+        delays[0] = self.scenario.forward.sample(times)
+        delays[1] = self.scenario.backward.sample(times)
+        unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
+        return delays, unit[:, 0]
 
     def advance(self, gains: np.ndarray) -> StepResult:
         """Simulate ``P`` control periods with the given remote gains.
@@ -246,17 +260,22 @@ class Simulator:
             (gains.shape[0] if gains.ndim == 3 else 1, self.batch, 2 * self.n_joints)))
         periods = gains.shape[0]
         stages = self._step + 0.5 * np.arange(2 * periods * self.substeps + 1)
-        delays, qh = self.sample_inputs(stages * self.dt)
+        delays, unit = self._sample(stages * self.dt)
+        ends = slice(2 * self.substeps, None, 2 * self.substeps)
+        end_delays = np.moveaxis(delays[:, ends], 0, -1).copy()
+        reference_gains = self.scenario.reference_gains
         if self._reference is not None:
-            state, delayed = self._reference.advance(delays, qh, gains)
+            state, delayed = self._reference.advance(np.moveaxis(delays, 0, -1),
+                                                     reference_gains[None] * unit[:, None], gains)
         else:
             state = np.empty((periods, self.batch, 8 * self.n_joints))
             delayed = np.empty((periods, self.batch, 2, self.n_joints))
-            _kernel.advance(self._x, self._hpos, self._hvel, self._initial, self._step, self.dt,
-                            self.substeps, delays, qh, gains, self._model, state, delayed)
+            delays /= self.dt  # the kernel takes them in steps
+            _kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
+                            self.substeps, delays, unit, reference_gains, gains, self._model,
+                            state, delayed)
         self._step += periods * self.substeps
-        ends = slice(2 * self.substeps, None, 2 * self.substeps)
-        return StepResult(stages[ends] * self.dt, state, delayed, delays[ends])
+        return StepResult(stages[ends] * self.dt, state, delayed, end_delays)
 
     def run(self, duration: float, gains: np.ndarray | None = None,
             chunk: float = 1.0) -> Trajectory:
@@ -301,7 +320,7 @@ class Simulator:
 
 def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
              delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
-             params: TeleoperatorParams | None = None, dt: float = 0.0025,
+             params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
              control_period: float = 0.01) -> pd.DataFrame:
     """Simulate one scenario and return it as a table.
 
