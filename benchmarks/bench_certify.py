@@ -1,0 +1,123 @@
+"""Timing of the certify LMIs: solve time against state dimension and number of vertices,
+and bisection with DPP re-solves against rebuilding the cvxpy problem at every step.
+
+Run: ``python benchmarks/bench_certify.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pandas as pd
+
+from certify import Certificate, LinearDelaySystem, PolytopicDelaySystem
+from certify.bisection import _bisect, _initial_guess
+from certify.methods import get_method
+from certify.solve import LMIProblem
+from certify.system import as_polytope
+
+RANK = 2
+"""Rank of each delay matrix (a teleoperator transmits positions only: rank 2 for 2 joints)."""
+
+
+def random_polytope(seed: int, n: int, m: int, vertices: int) -> PolytopicDelaySystem:
+    """Random polytope, stable at zero delay, whose delays act through fixed outputs
+    ``y_i = C_i x`` of rank ``RANK`` (only the gains ``B_i`` and ``A0`` vary over vertices)."""
+    rng = np.random.default_rng(seed)
+    r = min(RANK, n)
+    outputs = [rng.normal(size=(r, n)) / np.sqrt(n) for _ in range(m)]
+    while True:
+        a0 = rng.normal(size=(n, n)) / np.sqrt(n) - 1.5 * np.eye(n)
+        gains = [0.5 * rng.normal(size=(n, r)) for _ in range(m)]
+        verts = [
+            LinearDelaySystem(
+                a0 + 0.05 * rng.normal(size=(n, n)),
+                [
+                    (b + 0.1 * rng.normal(size=(n, r))) @ c
+                    for b, c in zip(gains, outputs, strict=True)
+                ],
+            )
+            for _ in range(vertices)
+        ]
+        if all(np.linalg.eigvals(v.A0 + sum(v.A)).real.max() < -0.2 for v in verts):
+            return PolytopicDelaySystem(tuple(verts))
+
+
+def time_solve(system: PolytopicDelaySystem, method: str, h: float) -> dict[str, float]:
+    t0 = time.perf_counter()
+    problem = LMIProblem(system, get_method(method), None)
+    t1 = time.perf_counter()
+    problem.solve([h] * system.m)
+    t2 = time.perf_counter()
+    cert = problem.solve([h] * system.m)
+    t3 = time.perf_counter()
+    return {
+        "build_s": t1 - t0,
+        "first_solve_s": t2 - t1,
+        "resolve_s": t3 - t2,
+        "certified": cert.certified,
+    }
+
+
+def solve_table(dims: list[int], vertex_counts: list[int], methods: list[str]) -> pd.DataFrame:
+    rows = []
+    for method in methods:
+        for n in dims:
+            for k in vertex_counts:
+                sys = random_polytope(n * 100 + k, n, 2, k)
+                rows.append(
+                    {"method": method, "n": n, "vertices": k, **time_solve(sys, method, 0.1)}
+                )
+                print("  done:", rows[-1], flush=True)
+    return pd.DataFrame(rows)
+
+
+class RebuildEveryStep:
+    """Same interface as LMIProblem, but builds (and compiles) a fresh problem per solve."""
+
+    def __init__(self, system: PolytopicDelaySystem, method: str) -> None:
+        self.system, self.method = system, get_method(method)
+
+    def solve(self, h: np.ndarray) -> Certificate:
+        return LMIProblem(self.system, self.method, None).solve(h)
+
+
+def bisection_table(dims: list[int], methods: list[str]) -> pd.DataFrame:
+    rows = []
+    for method in methods:
+        for n in dims:
+            sys = as_polytope(random_polytope(7 + n, n, 2, 1).vertices[0])
+            w = np.ones(sys.m)
+            guess = _initial_guess(sys)
+            out = {"method": method, "n": n}
+            for label, problem in (
+                ("dpp", LMIProblem(sys, get_method(method), None)),
+                ("rebuild", RebuildEveryStep(sys, method)),
+            ):
+                t0 = time.perf_counter()
+                cert = _bisect(problem, w, guess, 1e3, 1e-3)
+                out[f"{label}_s"] = time.perf_counter() - t0
+                out[f"{label}_h"] = cert.margin
+            out["speedup"] = out["rebuild_s"] / out["dpp_s"]
+            rows.append(out)
+    return pd.DataFrame(rows)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="small sizes only")
+    args = parser.parse_args()
+    dims = [2, 4, 6] if args.quick else [2, 4, 8, 12]
+    vertex_counts = [1, 2, 4] if args.quick else [1, 4, 16]
+    pd.set_option("display.width", 120)
+    pd.set_option("display.float_format", "{:.3f}".format)
+    print(f"LMI solve time (two fast-varying delays of rank {RANK}, h = 0.1)")
+    print(solve_table(dims, vertex_counts, ["rcc", "io"]).to_string(index=False))
+    print("\nBisection (rtol 1e-3): DPP re-solve vs rebuilding the problem each step")
+    print(bisection_table(dims[:3], ["rcc", "io"]).to_string(index=False))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,202 @@
+"""Public LMI entry points: certify given delay bounds, or find the largest certified bound."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from certify.certificate import Certificate
+from certify.conditions import check_mu
+from certify.methods import AUTO_METHODS, get_method
+from certify.solve import LMIProblem
+from certify.system import LinearDelaySystem, PolytopicDelaySystem, as_polytope
+
+__all__ = ["certify_delay", "max_delay", "max_delay_certificate"]
+
+System = LinearDelaySystem | PolytopicDelaySystem
+
+
+def _method_names(method: str) -> tuple[str, ...]:
+    if method == "auto":
+        return AUTO_METHODS
+    get_method(method)
+    return (method,)
+
+
+def _positive_vector(values: float | Sequence[float], m: int, what: str) -> np.ndarray:
+    vec = np.array(values, dtype=np.float64).reshape(-1)
+    if vec.size == 1:
+        vec = np.full(m, vec[0])
+    if vec.size != m:
+        raise ValueError(f"{what} needs {m} entries (one per delay), got {vec.size}")
+    if not np.all(np.isfinite(vec)) or np.any(vec <= 0):
+        raise ValueError(f"{what} must be finite and positive, got {vec.tolist()}")
+    return vec
+
+
+def certify_delay(
+    system: System,
+    h: float | Sequence[float],
+    method: str = "auto",
+    mu: float | None = None,
+) -> Certificate:
+    """Certify stability for given delay upper bounds.
+
+    Parameters
+    ----------
+    system : LinearDelaySystem or PolytopicDelaySystem
+        The system; a polytope is certified as a whole, for a parameter that switches
+        arbitrarily fast or is frozen, as its ``variation`` says.
+    h : float or sequence of float
+        Upper bound of each delay (a scalar applies to every delay).
+    method : str, optional
+        ``"jensen"``, ``"rcc"``, ``"wirtinger"``, ``"io"`` or ``"auto"`` (tries
+        ``wirtinger`` then ``io`` and returns the first certificate found).
+    mu : float or None, optional
+        ``None``: time-varying delays with unknown derivative; ``0.0``: constant delays;
+        ``0 < mu < 1``: ``tau_i'(t) <= mu``.
+
+    Returns
+    -------
+    Certificate
+        The certificate (``certified`` tells the verdict).
+
+    Raises
+    ------
+    ValueError
+        On an unknown method, bad bounds or bad ``mu``.
+    """
+    poly = as_polytope(system)
+    bounds = _positive_vector(h, poly.m, "h")
+    mu = check_mu(mu)
+    cert: Certificate | None = None
+    for name in _method_names(method):
+        cert = LMIProblem(poly, get_method(name), mu).solve(bounds)
+        if cert.certified:
+            break
+    assert cert is not None
+    return cert
+
+
+def _initial_guess(system: PolytopicDelaySystem) -> float:
+    """A delay of the order of the system's fastest time constant."""
+    norms = [
+        np.linalg.norm(np.hstack([a0, *mats]), 2)
+        for a0, mats in (v.explicit() for v in system.vertices)
+    ]
+    return 1.0 / max(1e-12, float(max(norms)))
+
+
+def _bisect(
+    problem: LMIProblem, weights: np.ndarray, guess: float, h_max: float, rtol: float
+) -> Certificate:
+    """Largest scale ``s <= h_max`` such that ``s * weights`` is certified (bisection)."""
+    best: Certificate | None = None
+    lo, hi = 0.0, min(guess, h_max)
+    while True:  # expand until a failure or h_max
+        cert = problem.solve(hi * weights)
+        if not cert.certified:
+            break
+        lo, best = hi, cert
+        if hi >= h_max:
+            return dataclasses.replace(cert, margin=lo)
+        hi = min(2.0 * hi, h_max)
+    first_failure = cert
+    while hi - lo > rtol * hi and hi > 1e-9 * guess:
+        mid = 0.5 * (lo + hi)
+        cert = problem.solve(mid * weights)
+        if cert.certified:
+            lo, best = mid, cert
+        else:
+            hi = mid
+    if best is None:
+        return dataclasses.replace(first_failure, margin=0.0)
+    return dataclasses.replace(best, margin=lo)
+
+
+def max_delay_certificate(
+    system: System,
+    method: str = "auto",
+    mu: float | None = None,
+    *,
+    weights: float | Sequence[float] = 1.0,
+    h_max: float = 1e3,
+    rtol: float = 1e-3,
+) -> Certificate:
+    """Largest certified delay bound by bisection, with its certificate.
+
+    Parameters
+    ----------
+    system : LinearDelaySystem or PolytopicDelaySystem
+        The system.
+    method : str, optional
+        ``"jensen"``, ``"rcc"``, ``"wirtinger"``, ``"io"`` or ``"auto"`` (runs ``wirtinger``
+        and ``io`` and keeps the larger bound).
+    mu : float or None, optional
+        Delay class as in :func:`certify_delay`.
+    weights : float or sequence of float, optional
+        Relative delay bounds: the certificate is for ``h_i = s * weights[i]`` and ``s`` is
+        maximised (default: one common bound ``h``).
+    h_max : float, optional
+        Largest scale tried; returned if it is certified.
+    rtol : float, optional
+        Relative width at which the bisection stops.
+
+    Returns
+    -------
+    Certificate
+        Certificate at the largest certified scale, which is stored in ``margin``
+        (``0.0`` with ``certified=False`` if no positive bound was certified).
+    """
+    poly = as_polytope(system)
+    w = _positive_vector(weights, poly.m, "weights")
+    mu = check_mu(mu)
+    if not (h_max > 0 and math.isfinite(h_max)) or not 0 < rtol < 1:
+        raise ValueError(f"need 0 < h_max < inf and 0 < rtol < 1, got {h_max}, {rtol}")
+    guess = _initial_guess(poly)
+    results = [
+        _bisect(LMIProblem(poly, get_method(name), mu), w, guess, h_max, rtol)
+        for name in _method_names(method)
+    ]
+    return max(results, key=lambda c: c.margin or 0.0)
+
+
+def max_delay(
+    system: System,
+    method: str = "auto",
+    mu: float | None = None,
+    *,
+    weights: float | Sequence[float] = 1.0,
+    h_max: float = 1e3,
+    rtol: float = 1e-3,
+) -> float:
+    """Largest common delay bound ``h`` certified for every delay (``0 <= tau_i(t) <= h``).
+
+    Parameters
+    ----------
+    system : LinearDelaySystem or PolytopicDelaySystem
+        The system.
+    method : str, optional
+        ``"jensen"``, ``"rcc"``, ``"wirtinger"``, ``"io"`` or ``"auto"`` (default, the best
+        of ``wirtinger`` and ``io``).
+    mu : float or None, optional
+        ``None``: time-varying delays with unknown derivative; ``0.0``: constant delays;
+        ``0 < mu < 1``: ``tau_i'(t) <= mu``.
+    weights : float or sequence of float, optional
+        Relative delay bounds (``h_i = h * weights[i]``); default one common bound.
+    h_max : float, optional
+        Largest bound tried.
+    rtol : float, optional
+        Relative bisection tolerance; the result is certified and within about ``rtol``
+        of the method's limit.
+
+    Returns
+    -------
+    float
+        The certified bound (``0.0`` if none).
+    """
+    cert = max_delay_certificate(system, method, mu, weights=weights, h_max=h_max, rtol=rtol)
+    return float(cert.margin or 0.0)

@@ -1,0 +1,133 @@
+"""Delay channels: the part of the state that each delay actually acts on.
+
+Delay ``i`` enters the dynamics only through ``A_i x(t - tau_i)``. With ``C_i`` an
+orthonormal basis of the row space of ``A_i`` over all vertices of a polytope,
+``A_i = B_i C_i`` with ``B_i = A_i C_i^T`` at every vertex (and, by linearity, at every
+point of the polytope), so the LMIs only need the delayed signal ``y_i = C_i x`` of
+dimension ``r_i = rank``. For a teleoperator, where only positions are transmitted, this
+shrinks the LMIs several-fold; for full-rank ``A_i``, ``C_i = I`` and nothing changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from certify.system import LinearDelaySystem, PolytopicDelaySystem
+
+__all__ = ["Channels"]
+
+_RANK_RTOL = 1e-10
+_BASIS_TOL = 1e-10
+
+
+@dataclass(frozen=True, eq=False)
+class Channels:
+    """Output maps ``y_i = C[i] x`` of the delay channels.
+
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    C : tuple of numpy.ndarray
+        One ``(r_i, n)`` matrix with orthonormal rows per delay.
+    """
+
+    n: int
+    C: tuple[NDArray[np.float64], ...]
+
+    @classmethod
+    def of(cls, system: PolytopicDelaySystem) -> Channels:
+        """Row-space bases of the delay matrices over all vertices.
+
+        Parameters
+        ----------
+        system : PolytopicDelaySystem
+            The system.
+
+        Returns
+        -------
+        Channels
+            ``C_i = I`` where ``A_i`` has full rank at some vertex combination, otherwise an
+            orthonormal basis of the joint row space (at least one row).
+        """
+        maps = []
+        for i in range(system.m):
+            stacked = np.vstack([v.A[i] for v in system.vertices])
+            _, sing, vt = np.linalg.svd(stacked)
+            rank = max(1, int(np.sum(sing > _RANK_RTOL * max(sing[0], 1e-300))))
+            maps.append(np.eye(system.n) if rank == system.n else vt[:rank].copy())
+        return cls(system.n, tuple(maps))
+
+    @property
+    def m(self) -> int:
+        """Number of delays."""
+        return len(self.C)
+
+    @property
+    def r(self) -> tuple[int, ...]:
+        """Dimension of each delayed signal."""
+        return tuple(int(c.shape[0]) for c in self.C)
+
+    def coef(self, i: int) -> Any:
+        """``C_i`` as a form coefficient (the scalar 1 when ``C_i`` is the identity).
+
+        Parameters
+        ----------
+        i : int
+            Delay index.
+
+        Returns
+        -------
+        float or numpy.ndarray
+            Coefficient mapping ``x`` to ``y_i``.
+        """
+        c = self.C[i]
+        return 1.0 if c.shape[0] == self.n and np.array_equal(c, np.eye(self.n)) else c
+
+    def input_matrix(self, vertex: LinearDelaySystem, i: int) -> Any:
+        """``B_i = A_i C_i^T`` of one vertex (``A_i`` itself when ``C_i = I``).
+
+        Parameters
+        ----------
+        vertex : LinearDelaySystem
+            A vertex of the system.
+        i : int
+            Delay index.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ``(n, r_i)`` input matrix of delay ``i``.
+        """
+        coef = self.coef(i)
+        return vertex.A[i] if np.ndim(coef) == 0 else vertex.A[i] @ self.C[i].T
+
+    def valid_for(self, system: PolytopicDelaySystem) -> bool:
+        """Whether every ``C_i`` has orthonormal rows and ``A_i = A_i C_i^T C_i`` at all vertices.
+
+        Parameters
+        ----------
+        system : PolytopicDelaySystem
+            The system.
+
+        Returns
+        -------
+        bool
+            ``True`` if the channel maps represent the system exactly (to ``1e-10``).
+        """
+        if self.m != system.m or self.n != system.n:
+            return False
+        for i, c in enumerate(self.C):
+            if c.ndim != 2 or c.shape[1] != self.n or not np.all(np.isfinite(c)):
+                return False
+            if not np.allclose(c @ c.T, np.eye(c.shape[0]), rtol=0.0, atol=_BASIS_TOL):
+                return False
+            for v in system.vertices:
+                scale = max(1.0, float(np.abs(v.A[i]).max()))
+                if np.abs(v.A[i] - v.A[i] @ c.T @ c).max() > _BASIS_TOL * scale:
+                    return False
+        return True

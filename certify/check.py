@@ -1,0 +1,129 @@
+"""Numpy re-check of LMI conditions from stored decision matrices."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from certify.channels import Channels
+from certify.conditions import LMIMethod
+from certify.system import PolytopicDelaySystem
+
+__all__ = ["RTOL", "relative_margin", "residuals", "solution_copies", "variables_valid"]
+
+RTOL = 1e-9
+"""Smallest accepted relative eigenvalue margin ``lambda_min(F) / max|lambda(F)|``."""
+
+
+def relative_margin(matrix: NDArray[np.float64]) -> float:
+    """Smallest eigenvalue of the symmetric part of ``matrix``, relative to its largest modulus.
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        Square matrix (the quadratic form only depends on its symmetric part).
+
+    Returns
+    -------
+    float
+        ``lambda_min / max |lambda|`` (``0.0`` for the zero matrix, ``-inf`` if not finite).
+    """
+    sym = 0.5 * (matrix + matrix.T)
+    if not np.all(np.isfinite(sym)):
+        return -np.inf
+    eig = np.linalg.eigvalsh(sym)
+    scale = float(np.max(np.abs(eig)))
+    return float(eig[0] / scale) if scale > 0.0 else 0.0
+
+
+def variables_valid(
+    method: LMIMethod,
+    system: PolytopicDelaySystem,
+    ch: Channels,
+    mu: float | None,
+    matrices: Mapping[str, NDArray[np.float64]],
+) -> bool:
+    """Check that ``matrices`` holds every decision matrix with its shape and symmetry.
+
+    Parameters
+    ----------
+    method : LMIMethod
+        The method whose variables are expected.
+    system : PolytopicDelaySystem
+        The system (its vertex count and parameter variation fix the variables).
+    ch : Channels
+        Delay channels.
+    mu : float or None
+        Delay-derivative bound.
+    matrices : Mapping[str, numpy.ndarray]
+        Stored decision matrices.
+
+    Returns
+    -------
+    bool
+        ``True`` when exactly the expected matrices are present, finite, of the right shape,
+        and symmetric where required.
+    """
+    specs = method.variables(ch, mu, solution_copies(system))
+    if set(matrices) != {spec.name for spec in specs}:
+        return False
+    for spec in specs:
+        value = matrices.get(spec.name)
+        if value is None or value.shape != spec.shape or not np.all(np.isfinite(value)):
+            return False
+        if spec.symmetric and not np.array_equal(value, value.T):
+            return False
+    return True
+
+
+def solution_copies(system: PolytopicDelaySystem) -> int:
+    """Number of copies of the functional's matrices: one per vertex if the parameter is frozen.
+
+    Parameters
+    ----------
+    system : PolytopicDelaySystem
+        The system.
+
+    Returns
+    -------
+    int
+        ``len(system.vertices)`` for a frozen parameter, else 1.
+    """
+    return len(system.vertices) if system.frozen else 1
+
+
+def residuals(
+    method: LMIMethod,
+    system: PolytopicDelaySystem,
+    ch: Channels,
+    matrices: Mapping[str, NDArray[np.float64]],
+    h: Sequence[float],
+    mu: float | None,
+) -> dict[str, float]:
+    """Relative eigenvalue margins of every condition, recomputed in numpy.
+
+    Parameters
+    ----------
+    method : LMIMethod
+        The method.
+    system : PolytopicDelaySystem
+        The system.
+    ch : Channels
+        Delay channels of the system.
+    matrices : Mapping[str, numpy.ndarray]
+        Decision matrices.
+    h : sequence of float
+        Delay bounds.
+    mu : float or None
+        Delay-derivative bound.
+
+    Returns
+    -------
+    dict
+        Condition name -> :func:`relative_margin` of its matrix (positive means satisfied).
+    """
+    h2 = [float(x) ** 2 for x in h]
+    conds = method.conditions(system, ch, matrices, [float(x) for x in h], h2, mu)
+    return {c.name: relative_margin(np.asarray(c.matrix, dtype=np.float64)) for c in conds}
