@@ -90,20 +90,34 @@ def _initial_guess(system: PolytopicDelaySystem) -> float:
     return 1.0 / max(1e-12, float(max(norms)))
 
 
+SCAN_TRIES = 4
+SCAN_FACTOR = 8.0
+"""When the initial guess is not certified, the bisection first tries up to three bounds
+``SCAN_FACTOR`` times larger each (at bounds far below the system's time scales the LMIs are
+badly conditioned and the numpy re-check may reject a solution that exists), then, if none is
+certified, bisects below the guess."""
+
+
 def _bisect(
     problem: LMIProblem, weights: np.ndarray, guess: float, h_max: float, rtol: float
 ) -> Certificate:
     """Largest scale ``s <= h_max`` such that ``s * weights`` is certified (bisection)."""
     best: Certificate | None = None
     lo, hi = 0.0, min(guess, h_max)
-    while True:  # expand until a failure or h_max
-        cert = problem.solve(hi * weights)
-        if not cert.certified:
+    cert = problem.solve(hi * weights)
+    for _ in range(SCAN_TRIES - 1):  # a tiny bound can fail numerically: look further up
+        if cert.certified or hi >= h_max:
             break
+        hi = min(SCAN_FACTOR * hi, h_max)
+        cert = problem.solve(hi * weights)
+    if not cert.certified:  # nothing above the guess: bisect below it
+        hi = min(guess, h_max)
+    while cert.certified:  # expand until a failure or h_max
         lo, best = hi, cert
         if hi >= h_max:
             return dataclasses.replace(cert, margin=lo)
         hi = min(2.0 * hi, h_max)
+        cert = problem.solve(hi * weights)
     first_failure = cert
     while hi - lo > rtol * hi and hi > 1e-9 * guess:
         mid = 0.5 * (lo + hi)

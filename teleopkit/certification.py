@@ -4,8 +4,9 @@
 with a :class:`GainCertificate`: the verdict, the admissible polytope inside the box (what the
 safety layer projects onto), the delay margin of the box and the assumptions the verdict rests on.
 
-Method: ``"nuno"``, the closed form of :mod:`teleopkit.closed_form` (nonlinear model, frozen
-gains); the LMI analysis of the linearisation (package :mod:`certify`) joins it as a second method.
+Methods: ``"nuno"``, the closed form of :mod:`teleopkit.closed_form` (nonlinear model, frozen
+gains, instant); ``"lmi"``, the Lyapunov–Krasovskii LMIs of :mod:`certify` on the linearisation at
+rest (:mod:`teleopkit.lmi_bridge`; seconds for one joint, minutes for two); ``"all"``, both.
 Gain classes: ``"frozen"`` (every constant gain in the set),
 ``"switching"`` (gains changing arbitrarily fast inside the set) and ``"rate:R"`` (gains whose rate
 is at most ``R`` per second).
@@ -23,11 +24,20 @@ import numpy as np
 from teleopkit.closed_form import ASSUMPTIONS as NUNO_ASSUMPTIONS
 from teleopkit.closed_form import nuno_delay_margin, nuno_margins, nuno_polytope
 from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.lmi_bridge import LMI_METHOD, lmi_certificate, lmi_delay_margin
 from teleopkit.params import TeleoperatorParams
 
-__all__ = ["GainCertificate", "GainVariation", "certify_gains", "parse_gain_variation"]
+__all__ = [
+    "GainCertificate",
+    "GainVariation",
+    "best_certificate",
+    "certify_gains",
+    "methods_for",
+    "parse_gain_variation",
+]
 
-METHODS = ("nuno",)
+METHODS = ("nuno", "lmi", "all")
+"""Values of ``method`` accepted by :func:`certify_gains`."""
 
 
 @dataclass(frozen=True)
@@ -88,7 +98,9 @@ class GainCertificate:
     box : GainBox
         The box asked about.
     polytope : GainPolytope
-        Certified gains inside the box (the safety layer's set); may be smaller than the box.
+        Gains inside the box offered to the safety layer; may be smaller than the box.
+    polytope_certified : bool
+        Whether ``polytope`` itself is certified (it can be when the box is not).
     assumptions : tuple of str
         What the verdict rests on.
     violation : str or None
@@ -104,6 +116,7 @@ class GainCertificate:
     delay_margin: float
     box: GainBox
     polytope: GainPolytope
+    polytope_certified: bool
     assumptions: tuple[str, ...]
     violation: str | None = None
     details: dict[str, Any] = field(default_factory=dict)
@@ -121,6 +134,7 @@ class GainCertificate:
             "polytope": {**self.polytope.to_dict(),
                          "joint_vertices": [self.polytope.joint_vertices(i).tolist()
                                             for i in range(n)]},
+            "polytope_certified": self.polytope_certified,
             "assumptions": list(self.assumptions),
             "violation": self.violation,
             "details": self.details,
@@ -141,7 +155,8 @@ class GainCertificate:
             return cls(bool(data["certified"]), str(data["method"]), str(data["gain_variation"]),
                        tuple(data["delay_bounds"]), math.inf if margin == "inf" else float(margin),
                        box, GainPolytope.from_dict(data["polytope"]),
-                       tuple(data["assumptions"]), data["violation"], dict(data["details"]))
+                       bool(data["polytope_certified"]), tuple(data["assumptions"]),
+                       data["violation"], dict(data["details"]))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
 
@@ -165,8 +180,122 @@ def _certify_nuno(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
                      f"4 B_l B_r - (T_l*+T_r*)^2 K_l K_r = {slack[i]:.6g} <= 0")
     return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
                            nuno_delay_margin(params, box), box,
-                           nuno_polytope(params, box, tl_max, tr_max), NUNO_ASSUMPTIONS,
+                           nuno_polytope(params, box, tl_max, tr_max), True, NUNO_ASSUMPTIONS,
                            violation, {"slack": slack.tolist()})
+
+
+def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                   kind: str, method: str) -> str:
+    """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
+    n = box.n_joints
+    for action in GainPolytope.from_box(box).vertices():
+        point = GainPolytope.from_box(GainBox(tuple(zip(action[:n], action[:n], strict=True)),
+                                              tuple(zip(action[n:], action[n:], strict=True))))
+        if not lmi_certificate(params, point, tl_max, tr_max, kind, method).certified:
+            return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
+                    f"B_r = {action[n:].tolist()} for T_l* = {tl_max:g}, T_r* = {tr_max:g}")
+    return (f"LMI ({method}) infeasible for the box as a whole (every vertex is certified "
+            "alone)")
+
+
+def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                  kind: str, method: str, steps: int) -> tuple[GainPolytope, bool]:
+    """Largest certified polytope of the family ``box`` cut by the closed form at ``s T*``.
+
+    ``s = 1`` is the closed-form polytope; smaller ``s`` cut less. Bisection on ``s`` over
+    ``steps`` solves after the first certified member (doubling ``s`` up to three times when
+    ``s = 1`` is not certified).
+    """
+    def member(scale: float) -> GainPolytope:
+        return nuno_polytope(params, box, scale * tl_max, scale * tr_max)
+
+    def certified(scale: float) -> bool:
+        polytope = member(scale)
+        return (not polytope.is_empty()
+                and lmi_certificate(params, polytope, tl_max, tr_max, kind, method).certified)
+
+    low, high = 0.0, 1.0
+    for _ in range(3):
+        if certified(high):
+            break
+        low, high = high, 2.0 * high
+    else:
+        return member(1.0), False
+    for _ in range(steps):
+        mid = 0.5 * (low + high)
+        low, high = (low, mid) if certified(mid) else (mid, high)
+    return member(high), True
+
+
+def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                 variation: GainVariation, method: str = LMI_METHOD,
+                 steps: int = 3) -> GainCertificate:
+    kind = "frozen" if variation.kind == "frozen" else "switching"
+    whole = GainPolytope.from_box(box)
+    cert = lmi_certificate(params, whole, tl_max, tr_max, kind, method)
+    if cert.certified:
+        polytope, polytope_certified, violation = whole, True, None
+    else:
+        polytope, polytope_certified = _lmi_polytope(params, box, tl_max, tr_max, kind, method,
+                                                     steps)
+        violation = _lmi_violation(params, box, tl_max, tr_max, kind, method)
+    margin = lmi_delay_margin(params, whole, kind, method)
+    assumptions = (
+        "linearisation at rest (any rest configuration), free space, the modelled operator "
+        "spring and damper, no torque saturation",
+        "time-varying delays 0 <= T_i(t) <= T_i*, derivative unrestricted",
+        {"frozen": "constant (frozen) remote gains",
+         "switching": "remote gains switching arbitrarily fast inside the set",
+         "rate": f"remote gains of rate at most {variation.rate:g}/s, certified as arbitrary "
+                 "switching (which contains them)"}[variation.kind],
+        *cert.assumptions,
+    )
+    details = {"lmi_method": method, "solver_status": cert.status,
+               "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices)}
+    return GainCertificate(cert.certified, "lmi", str(variation), (tl_max, tr_max),
+                           float(margin.margin or 0.0), box, polytope, polytope_certified,
+                           assumptions, violation, details)
+
+
+def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
+    """The single methods that ``method`` runs for a gain class (``"all"`` expands).
+
+    Parameters
+    ----------
+    method : {"nuno", "lmi", "all"}
+        Requested method.
+    variation : GainVariation
+        Gain class; the closed form covers frozen gains only.
+
+    Returns
+    -------
+    tuple of str
+        Method names.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    if method != "all":
+        return (method,)
+    return ("lmi", "nuno") if variation.kind == "frozen" else ("lmi",)
+
+
+def best_certificate(certificates: list[GainCertificate]) -> GainCertificate:
+    """The most useful of several certificates of one question.
+
+    Certified before not certified, then a certified polytope, then the larger delay margin.
+    For frozen gains every method certifies pointwise, so the best one alone is sound.
+
+    Parameters
+    ----------
+    certificates : list of GainCertificate
+        Answers of different methods to the same question.
+
+    Returns
+    -------
+    GainCertificate
+        The best of them.
+    """
+    return max(certificates, key=lambda c: (c.certified, c.polytope_certified, c.delay_margin))
 
 
 def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
@@ -182,8 +311,9 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         Remote gain ranges per joint.
     tl_max, tr_max : float
         Delay bounds in seconds (positive).
-    method : {"nuno"}
-        Certification method.
+    method : {"nuno", "lmi", "all"}
+        Certification method; ``"all"`` runs every method that covers the gain class and
+        returns the best certificate (:func:`best_certificate`).
     variation : GainVariation or str
         Gain class: ``"frozen"``, ``"switching"`` or ``"rate:R"``.
 
@@ -204,6 +334,9 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         variation = parse_gain_variation(variation)
     if box.n_joints != params.n_joints:
         raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
-    if method == "nuno":
-        return _certify_nuno(params, box, tl_max, tr_max, variation)
-    raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    for name, value in (("T_l*", tl_max), ("T_r*", tr_max)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"delay bound {name} must be positive and finite, got {value}")
+    run = {"nuno": _certify_nuno, "lmi": _certify_lmi}
+    return best_certificate([run[name](params, box, tl_max, tr_max, variation)
+                             for name in methods_for(method, variation)])

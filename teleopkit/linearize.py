@@ -26,7 +26,19 @@ from certify import LinearDelaySystem
 from teleopkit.dynamics import mass_from_cosines
 from teleopkit.params import PlanarArm, TeleoperatorParams
 
-__all__ = ["inertia_vertices", "linearized_state_space", "linearized_system"]
+__all__ = ["inertia_vertices", "linearized_state_space", "linearized_system", "rest_systems"]
+
+
+def _cosine_patterns(n: int) -> list[np.ndarray]:
+    """Matrices of relative-angle cosines at every sign pattern ``cos(phi_i - phi_j) = +-1``."""
+    pairs = list(itertools.combinations(range(n), 2))
+    patterns = []
+    for signs in itertools.product((-1.0, 1.0), repeat=len(pairs)):
+        cosines = np.eye(n)
+        for (i, j), sign in zip(pairs, signs, strict=True):
+            cosines[i, j] = cosines[j, i] = sign
+        patterns.append(cosines)
+    return patterns
 
 
 def inertia_vertices(arm: PlanarArm) -> list[np.ndarray]:
@@ -43,17 +55,37 @@ def inertia_vertices(arm: PlanarArm) -> list[np.ndarray]:
         ``M`` at each sign pattern of the relative-angle cosines; for two links, ``cos q2 = -1``
         and ``cos q2 = +1``.
     """
-    n = arm.n_joints
-    pairs = list(itertools.combinations(range(n), 2))
-    vertices = []
-    for signs in itertools.product((-1.0, 1.0), repeat=len(pairs)):
-        cosines = np.eye(n)
-        for (i, j), sign in zip(pairs, signs, strict=True):
-            cosines[i, j] = cosines[j, i] = sign
-        mass = mass_from_cosines(arm, cosines)
-        if np.linalg.eigvalsh(mass).min() > 0:
-            vertices.append(mass)
-    return vertices
+    masses = (mass_from_cosines(arm, c) for c in _cosine_patterns(arm.n_joints))
+    return [m for m in masses if np.linalg.eigvalsh(m).min() > 0]
+
+
+def rest_systems(params: TeleoperatorParams, action: np.ndarray) -> list[LinearDelaySystem]:
+    """The linearisation at every configuration vertex, for one remote gain vector.
+
+    At rest all positions agree (``q_l = q_r = theta``), so both arms sit in the same
+    configuration: each vertex uses the same cosines on both arms. The convex hull of the
+    returned systems contains the linearisation at every rest configuration.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    action : ndarray, shape (2 n,)
+        Remote gains ``[K_r..., B_r...]``.
+
+    Returns
+    -------
+    list of certify.LinearDelaySystem
+        One system per cosine sign pattern at which both inertia matrices are positive
+        definite.
+    """
+    n = params.n_joints
+    systems = []
+    for cosines in _cosine_patterns(n):
+        masses = [mass_from_cosines(arm, cosines) for arm in (params.local_arm, params.remote_arm)]
+        if all(np.linalg.eigvalsh(m).min() > 0 for m in masses):
+            systems.append(linearized_system(params, action[:n], action[n:], *masses))
+    return systems
 
 
 def _diag(values: tuple[float, ...] | np.ndarray) -> np.ndarray:

@@ -45,7 +45,8 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
         verdict = "CERTIFIED" if cert.certified else "NOT CERTIFIED"
         lines += ["", f"[{cert.method}] {verdict} for {cert.gain_variation} gains",
                   f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"]
-        lines += [f"  admissible j{i + 1}  {_polygon(cert, i)}" for i in range(box.n_joints)]
+        label = "admissible" if cert.polytope_certified else "uncertified"
+        lines += [f"  {f'{label} j{i + 1}':<16}{_polygon(cert, i)}" for i in range(box.n_joints)]
         if cert.violation:
             lines.append(f"  violation       {cert.violation}")
         lines += [f"  assumes         {text}" for text in cert.assumptions]

@@ -45,15 +45,6 @@ _OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy"
 _jit = njit(**_OPTIONS)
 _inline = njit(forceinline=True, **_OPTIONS)
 
-_POLYTOPE_CERTIFIED_BY_CONSTRUCTION = frozenset({"nuno"})
-"""Methods whose polytope is certified even when the whole box is not.
-
-The closed form (:func:`teleopkit.closed_form.nuno_polytope`) builds the polytope as the box
-intersected with the closed-form half-plane of every joint (with a positive slack), so each of its
-points satisfies the sufficient condition whatever the verdict on the box.
-"""
-
-
 class Fallback(enum.IntFlag):
     """What the safety layer did beyond an exact projection (flags, combinable).
 
@@ -387,11 +378,9 @@ class SafetyLayer:
                          rate: float | None = None, tol: float = 1e-9) -> SafetyLayer:
         """Build the layer on a certificate's polytope.
 
-        The set is ``certificate.polytope``, which is the certified subset of the box asked
-        about: it is accepted when the whole box is certified (``certificate.certified``), or
-        when the method certifies the polytope by construction even if the box is not (the
-        closed form ``"nuno"``: box intersected with the closed-form half-plane of each joint).
-        Any other uncertified certificate is refused. The layer keeps actions inside the set;
+        The set is ``certificate.polytope``, the certified subset of the box asked about: it is
+        accepted when it is certified (``certificate.polytope_certified``), even if the whole
+        box is not; otherwise the certificate is refused. The layer keeps actions inside the set;
         which gain *variations* are covered (frozen, switching, rate-bounded) is the
         certificate's ``gain_variation``.
 
@@ -420,8 +409,7 @@ class SafetyLayer:
             If the certificate does not certify its polytope, the polytope is empty, or the
             rate exceeds the certified one.
         """
-        if not (certificate.certified
-                or certificate.method in _POLYTOPE_CERTIFIED_BY_CONSTRUCTION):
+        if not certificate.polytope_certified:
             raise ValueError(f"the {certificate.method} certificate does not certify its gain "
                              f"set ({certificate.violation or 'not certified'}); refusing to "
                              "build a safety layer on it")

@@ -7,7 +7,12 @@ import pytest
 
 from teleopkit.control import local_torque, operator_torque, remote_torque
 from teleopkit.dynamics import mass_matrix
-from teleopkit.linearize import inertia_vertices, linearized_state_space, linearized_system
+from teleopkit.linearize import (
+    inertia_vertices,
+    linearized_state_space,
+    linearized_system,
+    rest_systems,
+)
 from teleopkit.params import paper_setup
 
 
@@ -66,3 +71,16 @@ def test_state_space_is_stable_and_tracks_at_dc():
     np.testing.assert_allclose(dc[2:], 0.0, atol=1e-12)  # no static flexibility error
     with pytest.raises(ValueError, match="cos_q"):
         linearized_state_space(params, 10.0, 30.0, cos_q=2.0)
+
+
+def test_rest_systems_share_the_configuration_on_both_arms():
+    params = paper_setup()
+    action = np.array([12.0, 8.0, 30.0, 25.0])
+    systems = rest_systems(params, action)
+    assert len(systems) == 2
+    n = params.n_joints
+    for system, q2 in zip(systems, (np.pi, 0.0), strict=True):
+        q = np.array([0.0, q2])
+        np.testing.assert_allclose(system.E[n:2 * n, n:2 * n], mass_matrix(params.local_arm, q))
+        np.testing.assert_allclose(system.E[3 * n:4 * n, 3 * n:4 * n],
+                                   mass_matrix(params.remote_arm, q))

@@ -183,10 +183,11 @@ def test_random_polygons_match_the_reference(polytope, raw):
 
 
 def test_uncertified_certificate_is_refused():
-    lmi = dataclasses.replace(CERT, method="lmi", certified=False, violation="LMI infeasible")
+    lmi = dataclasses.replace(CERT, method="lmi", certified=False, polytope_certified=False,
+                              violation="LMI infeasible")
     with pytest.raises(ValueError, match="does not certify"):
         SafetyLayer.from_certificate(lmi)
-    SafetyLayer.from_certificate(dataclasses.replace(lmi, certified=True))
+    SafetyLayer.from_certificate(dataclasses.replace(lmi, polytope_certified=True))
 
 
 def test_empty_polytope_is_refused():

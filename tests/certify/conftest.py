@@ -21,13 +21,3 @@ def scalar_system() -> LinearDelaySystem:
     """``x' = -x(t - tau)``."""
     return LinearDelaySystem(0.0, [-1.0])
 
-
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Skip the certify tests marked ``slow`` unless they are selected with ``-m slow``."""
-    if "slow" in (config.getoption("markexpr") or ""):
-        return
-    skip = pytest.mark.skip(reason="slow: run with -m slow")
-    here = str(config.rootpath / "tests" / "certify")
-    for item in items:
-        if "slow" in item.keywords and str(item.path).startswith(here):
-            item.add_marker(skip)

@@ -1,0 +1,126 @@
+"""LMI certificates of gain sets: sound against exact spectra, never behind the closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from certify import exact_constant_margin, max_delay
+from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.closed_form import nuno_polytope
+from teleopkit.falsify import falsify
+from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.linearize import rest_systems
+from teleopkit.lmi_bridge import LMI_METHOD, gain_set_system, lmi_certificate, lmi_delay_margin
+from teleopkit.params import (
+    ElasticJoints,
+    InitialState,
+    Operator,
+    PDGains,
+    PlanarArm,
+    TeleoperatorParams,
+    paper_setup,
+)
+from teleopkit.safety import SafetyLayer
+
+
+@pytest.fixture(scope="module")
+def one_joint() -> TeleoperatorParams:
+    """The paper's first joint alone (same arm, spring, rotor and gains): cheap LMIs."""
+    arm = PlanarArm((0.38,), (0.5,))
+    return TeleoperatorParams(
+        local_arm=arm, remote_arm=arm, joints=ElasticJoints((100.0,), (0.3,)),
+        local_gains=PDGains((25.0,), (10.0,)), remote_gains=PDGains((10.0,), (30.0,)),
+        operator=Operator(amplitudes=(3.0,), frequencies=(1.0,), phases=(0.0,), decays=(0.05,)),
+        initial=InitialState((-0.2,), (-0.1,), (0.0,)))
+
+
+WIDE = GainBox.uniform((1.0, 50.0), (1.0, 150.0), n_joints=1)
+NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
+
+
+def _area(polytope: GainPolytope) -> float:
+    return float(ConvexHull(polytope.joint_vertices(0)).volume)
+
+
+@pytest.fixture(scope="module")
+def wide_frozen(one_joint) -> GainCertificate:
+    return certify_gains(one_joint, WIDE, 1.0, 1.0, method="lmi")
+
+
+def test_frozen_lmi_set_contains_the_closed_form_set(one_joint, wide_frozen):
+    closed = nuno_polytope(one_joint, WIDE, 1.0, 1.0)
+    assert not wide_frozen.certified and wide_frozen.polytope_certified
+    assert np.all(wide_frozen.polytope.contains(closed.vertices(), tol=1e-9))
+    ratio = _area(wide_frozen.polytope) / _area(closed)
+    assert ratio > 1.01, ratio
+    assert "infeasible at the vertex" in (wide_frozen.violation or "")
+
+
+def test_certified_polytope_is_certified_at_random_interior_points(one_joint, wide_frozen,
+                                                                   rng):
+    vertices = wide_frozen.polytope.vertices()
+    for weights in rng.dirichlet(np.ones(len(vertices)), size=3):
+        k, b = weights @ vertices
+        point = GainPolytope.from_box(GainBox(((k, k),), ((b, b),)))
+        assert lmi_certificate(one_joint, point, 1.0, 1.0).certified
+
+
+def test_lmi_margin_beats_the_closed_form_and_stays_below_the_exact_margin(one_joint):
+    lmi = certify_gains(one_joint, NARROW, 1.0, 1.0, method="lmi")
+    closed = certify_gains(one_joint, NARROW, 1.0, 1.0, method="nuno")
+    assert lmi.certified and closed.certified
+    assert lmi.delay_margin > 1.3 * closed.delay_margin
+    exact = min(exact_constant_margin(system)
+                for action in GainPolytope.from_box(NARROW).vertices()
+                for system in rest_systems(one_joint, action))
+    assert lmi.delay_margin <= exact
+
+
+def test_margin_of_an_unstable_corner_is_below_its_exact_margin():
+    """Two joints at K_r = 50, B_r = 1: unstable beyond a constant delay of about 0.14 s."""
+    params = paper_setup()
+    corner = GainPolytope.from_box(GainBox(((50.0, 50.0),) * 2, ((1.0, 1.0),) * 2))
+    system = gain_set_system(params, corner, "frozen")
+    exact = [exact_constant_margin(vertex) for vertex in system.vertices]
+    assert min(exact) < 0.2
+    assert lmi_delay_margin(params, corner).margin <= min(exact)
+    for vertex, bound in zip(system.vertices, exact, strict=True):  # each configuration alone
+        assert max_delay(vertex, LMI_METHOD, rtol=0.05) <= bound
+
+
+def test_switching_is_harder_than_frozen_and_rate_is_certified_as_switching(one_joint):
+    frozen = certify_gains(one_joint, NARROW, 1.0, 1.0, method="lmi", variation="frozen")
+    rate = certify_gains(one_joint, NARROW, 1.0, 1.0, method="lmi", variation="rate:5")
+    assert rate.certified and rate.gain_variation == "rate:5"
+    assert 0.0 < rate.delay_margin <= frozen.delay_margin
+    assert any("certified as arbitrary switching" in a for a in rate.assumptions)
+    layer = SafetyLayer.from_certificate(rate)
+    assert layer.max_step is not None
+
+
+def test_all_returns_the_best_method_and_round_trips(one_joint):
+    best = certify_gains(one_joint, NARROW, 1.0, 1.0, method="all")
+    assert best.method == "lmi"
+    again = GainCertificate.from_json(best.to_json())
+    assert again.polytope_certified and again.delay_margin == best.delay_margin
+
+
+def test_bad_input(one_joint):
+    with pytest.raises(ValueError, match="unknown method"):
+        certify_gains(one_joint, NARROW, 1.0, 1.0, method="lmj")
+    with pytest.raises(ValueError, match="positive"):
+        certify_gains(one_joint, NARROW, 0.0, 1.0, method="lmi")
+    with pytest.raises(ValueError, match="closed form"):
+        certify_gains(one_joint, NARROW, 1.0, 1.0, method="nuno", variation="switching")
+    empty = nuno_polytope(one_joint, GainBox(((40.0, 50.0),), ((1.0, 5.0),)), 1.0, 1.0)
+    with pytest.raises(ValueError, match="empty"):
+        lmi_certificate(one_joint, empty, 1.0, 1.0)
+
+
+def test_falsification_inside_the_lmi_set_never_diverges(one_joint, wide_frozen):
+    report = falsify(one_joint, wide_frozen.polytope, 1.0, 1.0, batch=16, duration=10.0,
+                     switching=False, seed=3)
+    assert not report["diverged"].any()
+
