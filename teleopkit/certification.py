@@ -67,7 +67,19 @@ class GainVariation:
 
 
 def parse_gain_variation(text: str) -> GainVariation:
-    """Parse ``frozen``, ``switching`` or ``rate:R``."""
+    """Parse ``frozen``, ``switching`` or ``rate:R``.
+
+    Parameters
+    ----------
+    text : str
+        The gain class: ``frozen``, ``switching`` or ``rate:R`` with ``R`` the largest rate of
+        change in gain units per second.
+
+    Returns
+    -------
+    GainVariation
+        The parsed gain class; raises ValueError on anything else.
+    """
     kind, _, rate = text.partition(":")
     if kind == "rate":
         try:
@@ -141,12 +153,34 @@ class GainCertificate:
         }
 
     def to_json(self, indent: int | None = 2) -> str:
-        """JSON text of :meth:`to_dict`."""
+        """JSON text of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation passed to :func:`json.dumps`; None for a single line.
+
+        Returns
+        -------
+        str
+            The certificate as JSON (an infinite delay margin as the string ``"inf"``).
+        """
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
     def from_json(cls, text: str) -> GainCertificate:
-        """Inverse of :meth:`to_json`; raises ValueError on malformed text."""
+        """Inverse of :meth:`to_json`; raises ValueError on malformed text.
+
+        Parameters
+        ----------
+        text : str
+            JSON text as :meth:`to_json` writes it.
+
+        Returns
+        -------
+        GainCertificate
+            The certificate.
+        """
         try:
             data = json.loads(text)
             ranges = data["box"]

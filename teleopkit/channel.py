@@ -73,7 +73,15 @@ class DelayChannel:
         self.index = 0
 
     def record(self, position: np.ndarray, velocity: np.ndarray) -> None:
-        """Store the sample of the next grid point ``t_{k+1}``."""
+        """Store the sample of the next grid point ``t_{k+1}``.
+
+        Parameters
+        ----------
+        position : ndarray, shape (B, n)
+            The signal's value at ``t_{k+1}``.
+        velocity : ndarray, shape (B, n)
+            The signal's derivative at ``t_{k+1}`` (used by the Hermite interpolation).
+        """
         self.index += 1
         self.position[self.index % self.length] = position
         self.velocity[self.index % self.length] = velocity

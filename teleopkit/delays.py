@@ -82,7 +82,19 @@ class DelayProfile(Protocol):
         ...
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Delays at the times ``t`` (shape ``(S,)``), shape ``(S, B)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time for each of the profile's ``B`` scenarios (``B = 1``
+            when the profile is the same for every scenario), within ``[0, bound]``.
+        """
         ...
 
 
@@ -137,7 +149,23 @@ class FourierDelay:
             object.__setattr__(self, "bound", float(scale.max()) * PAPER_DELAY_MAX)
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``, shape ``(S, B)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``scale``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         shape = _paper_shape(_times(t))
         scale = np.asarray(self.scale)
         # The shape is positive and the scales non-negative, so the extremes of the products are
@@ -170,7 +198,23 @@ class ConstantDelay:
             object.__setattr__(self, "bound", float(np.max(self.value)))
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``, shape ``(S, B)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``value``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         values = np.broadcast_to(np.asarray(self.value), (_times(t).size, np.size(self.value)))
         return _checked(self, np.array(values), self.bound)
 
@@ -208,7 +252,23 @@ class SinusoidalDelay:
         return self.mean + self.amplitude
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``, shape ``(S, B)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``phase``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         angle = 2.0 * np.pi * self.frequency * _times(t)[:, None] + np.asarray(self.phase)
         return _checked(self, self.mean + self.amplitude * np.sin(angle), self.bound)
 
@@ -272,7 +332,23 @@ class SwitchingDelay:
         return self.high
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``, shape ``(S, B)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per scenario (``B = batch``).
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         interval = np.floor(_times(t) / self.dwell + 1e-9).astype(np.int64)
         u = _uniform_hash(self.seed, interval[:, None], np.arange(self.batch)[None, :])
         if self.mode == "extremes":
@@ -350,7 +426,23 @@ class TraceDelay:
         return cls(times, delays, bound)
 
     def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``, shape ``(S, 1)``."""
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, 1)
+            Delay in seconds at each time, one column shared by every scenario.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         values = np.interp(_times(t), self.times, self.delays)[:, None]
         return _checked(self, values, self.bound)
 

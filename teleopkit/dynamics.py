@@ -28,7 +28,18 @@ __all__ = [
 
 
 def inertia_coefficients(arm: PlanarArm) -> np.ndarray:
-    """Return ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``, shape ``(n, n)``."""
+    """Return the inertia coefficients ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        Symmetric coefficients ``a_ij`` in kg m^2 (``M_abs[i, j] = a_ij cos(phi_i - phi_j)``).
+    """
     lengths = np.array(arm.lengths)
     outboard = np.cumsum(np.array(arm.masses)[::-1])[::-1]
     index = np.arange(arm.n_joints)
@@ -106,7 +117,20 @@ def coriolis_matrix(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray
 
 
 def mass_matrix_derivative(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Time derivative ``dM/dt`` along the motion ``(q, q')``, shape ``(..., n, n)``."""
+    """Time derivative ``dM/dt`` of the inertia matrix along the motion ``(q, q')``.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q, dq : ndarray, shape (..., n)
+        Joint angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        The symmetric matrix ``M'``; ``M' - 2C`` is skew-symmetric (:func:`coriolis_matrix`).
+    """
     phi = _absolute(np.asarray(q, dtype=float))
     dphi = _absolute(np.asarray(dq, dtype=float))
     diff = phi[..., :, None] - phi[..., None, :]
@@ -115,7 +139,20 @@ def mass_matrix_derivative(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.
 
 
 def kinetic_energy(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Kinetic energy ``q'^T M(q) q' / 2`` of the arm, shape ``(...)``."""
+    """Kinetic energy ``q'^T M(q) q' / 2`` of the arm.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q, dq : ndarray, shape (..., n)
+        Joint angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Kinetic energy in joules.
+    """
     dq = np.asarray(dq, dtype=float)
     return 0.5 * np.einsum("...i,...ij,...j->...", dq, mass_matrix(arm, q), dq)
 

@@ -83,7 +83,22 @@ class GainBox:
     @classmethod
     def uniform(cls, kr: tuple[float, float], br: tuple[float, float],
                 n_joints: int = 2) -> GainBox:
-        """The same ``K_r`` and ``B_r`` ranges on every joint."""
+        """The same ``K_r`` and ``B_r`` ranges on every joint.
+
+        Parameters
+        ----------
+        kr : tuple of (float, float)
+            ``(min, max)`` of ``K_r``.
+        br : tuple of (float, float)
+            ``(min, max)`` of ``B_r``.
+        n_joints : int
+            Number of joints.
+
+        Returns
+        -------
+        GainBox
+            The box with ``n_joints`` copies of each range.
+        """
         return cls((tuple(kr),) * n_joints, (tuple(br),) * n_joints)  # type: ignore[arg-type]
 
     @property
@@ -102,7 +117,18 @@ class GainBox:
         return np.array([hi for _, hi in self.kr + self.br])
 
     def joint(self, i: int) -> GainBox:
-        """The one-joint box of joint ``i``."""
+        """The one-joint box of joint ``i``.
+
+        Parameters
+        ----------
+        i : int
+            Joint index, from 0.
+
+        Returns
+        -------
+        GainBox
+            A box with the ``K_r`` and ``B_r`` ranges of joint ``i`` only.
+        """
         return GainBox((self.kr[i],), (self.br[i],))
 
     def to_dict(self) -> dict[str, list[list[float]]]:
@@ -142,7 +168,19 @@ class GainPolytope:
 
     @classmethod
     def from_box(cls, box: GainBox) -> GainPolytope:
-        """The box itself as a polytope."""
+        """The box itself as a polytope.
+
+        Parameters
+        ----------
+        box : GainBox
+            Per-joint gain ranges.
+
+        Returns
+        -------
+        GainPolytope
+            ``4 n`` rows: ``a <= upper`` then ``-a <= -lower``, labelled ``"K_r1 <= max"``,
+            ``"K_r1 >= min"`` and so on.
+        """
         n = box.n_joints
         eye = np.eye(2 * n)
         names = [f"K_r{i + 1}" for i in range(n)] + [f"B_r{i + 1}" for i in range(n)]
@@ -151,7 +189,22 @@ class GainPolytope:
 
     def intersect(self, normals: np.ndarray, offsets: np.ndarray,
                   labels: tuple[str, ...]) -> GainPolytope:
-        """Add the rows ``normals a <= offsets``."""
+        """Add the rows ``normals a <= offsets``.
+
+        Parameters
+        ----------
+        normals : ndarray, shape (k, 2 n)
+            Normals of the new constraints.
+        offsets : ndarray, shape (k,)
+            Offsets of the new constraints.
+        labels : tuple of str
+            What each new row expresses.
+
+        Returns
+        -------
+        GainPolytope
+            A new polytope with the rows of this one followed by the new rows.
+        """
         return GainPolytope(np.vstack([self.G, normals]), np.concatenate([self.h, offsets]),
                             self.labels + labels)
 
@@ -161,14 +214,38 @@ class GainPolytope:
         return self.G.shape[1]
 
     def contains(self, actions: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-        """Whether each action ``(..., 2 n)`` satisfies every constraint within ``tol``."""
+        """Whether each action satisfies every constraint within ``tol``.
+
+        Parameters
+        ----------
+        actions : ndarray, shape (..., 2 n)
+            Gain vectors ``[K_r^1..K_r^n, B_r^1..B_r^n]``.
+        tol : float
+            Absolute tolerance added to every offset: ``G a <= h + tol``.
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+            Whether each action lies in the polytope.
+        """
         actions = np.asarray(actions, dtype=float)
         return np.all(actions @ self.G.T <= self.h + tol, axis=-1)
 
     def joint_vertices(self, i: int) -> np.ndarray:
-        """Vertices ``(K_r^i, B_r^i)`` of joint ``i``'s polygon, shape ``(k, 2)``.
+        """Vertices ``(K_r^i, B_r^i)`` of joint ``i``'s polygon.
 
         Only rows that involve joint ``i`` alone are used (the polytope is a product of joints).
+
+        Parameters
+        ----------
+        i : int
+            Joint index, from 0.
+
+        Returns
+        -------
+        ndarray, shape (k, 2)
+            The vertices in counter-clockwise order around their centroid; ``k = 0`` when the
+            polygon is empty.
         """
         n = self.dimension // 2
         cols = [i, n + i]
@@ -210,7 +287,18 @@ class GainPolytope:
 
     @classmethod
     def from_dict(cls, data: dict[str, object]) -> GainPolytope:
-        """Inverse of :meth:`to_dict`; raises ValueError on malformed data."""
+        """Inverse of :meth:`to_dict`; raises ValueError on malformed data.
+
+        Parameters
+        ----------
+        data : dict
+            Plain data with the keys ``G``, ``h`` and ``labels``, as :meth:`to_dict` returns.
+
+        Returns
+        -------
+        GainPolytope
+            The polytope.
+        """
         try:
             return cls(np.array(data["G"], dtype=float), np.array(data["h"], dtype=float),
                        tuple(str(s) for s in data["labels"]))  # type: ignore[attr-defined]

@@ -124,7 +124,22 @@ class PDGains:
 
     @classmethod
     def uniform(cls, stiffness: float, damping: float, n_joints: int = 2) -> PDGains:
-        """Return the same gains ``(stiffness, damping)`` on every joint."""
+        """Return the same gains ``(stiffness, damping)`` on every joint.
+
+        Parameters
+        ----------
+        stiffness : float
+            Proportional gain ``K`` of every joint.
+        damping : float
+            Damping gain ``B`` of every joint.
+        n_joints : int
+            Number of joints.
+
+        Returns
+        -------
+        PDGains
+            Gains with ``n_joints`` equal entries each.
+        """
         return cls((stiffness,) * n_joints, (damping,) * n_joints)
 
     def as_action(self) -> np.ndarray:
@@ -307,7 +322,20 @@ class TeleoperatorParams:
         return self.local_arm.n_joints
 
     def with_remote_gains(self, stiffness: float, damping: float) -> TeleoperatorParams:
-        """Return a copy with uniform remote gains ``K_r = stiffness``, ``B_r = damping``."""
+        """Return a copy with uniform remote gains ``K_r = stiffness``, ``B_r = damping``.
+
+        Parameters
+        ----------
+        stiffness : float
+            Remote proportional gain ``K_r`` of every joint.
+        damping : float
+            Remote damping gain ``B_r`` of every joint.
+
+        Returns
+        -------
+        TeleoperatorParams
+            A copy of these parameters with only ``remote_gains`` replaced.
+        """
         return replace(self, remote_gains=PDGains.uniform(stiffness, damping, self.n_joints))
 
 

@@ -83,8 +83,21 @@ class StepResult:
 class Trajectory(StepResult):
     """A recorded run: a :class:`StepResult` from ``t = 0`` including the initial row.
 
+    ``P`` is the number of recorded times: the control periods of the run plus the row at
+    ``t = 0``.
+
     Attributes
     ----------
+    t : ndarray, shape (P,)
+        Recorded times in seconds: ``0`` then the end time of each period.
+    state : ndarray, shape (P, B, 8 n)
+        ``[q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp]`` at each time (row 0
+        is the initial state).
+    delayed : ndarray, shape (P, B, 2, n)
+        ``q_l(t - T_l)`` and ``theta(t - T_r)`` (row 0 holds the constant past, the initial
+        ``q_l`` and ``theta``).
+    delays : ndarray, shape (P, B, 2)
+        ``T_l(t)`` and ``T_r(t)`` in seconds.
     gains : ndarray, shape (P, B, 2 n)
         Remote gains in force at each time (row 0 holds the first period's gains).
     """
@@ -110,7 +123,20 @@ class Trajectory(StepResult):
         return error_metrics(self.t, {"track": self.e_track, "damp": self.e_damp})
 
     def to_frame(self, scenario: int = 0) -> pd.DataFrame:
-        """One scenario as a table with columns ``t, ql_i, qr_i, theta_i, ..., e_damp_i``."""
+        """One scenario as a table with columns ``t, ql_i, qr_i, theta_i, ..., e_damp_i``.
+
+        Parameters
+        ----------
+        scenario : int
+            Index of the scenario in the batch, from 0.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per recorded time, columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i,
+            dtheta_i, Tl, Tr, ql_delayed_i, theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i``
+            (``i`` the joint, from 1).
+        """
         n = self.state.shape[-1] // 8
         blocks = {"ql": 0, "dql": 1, "qr": 2, "dqr": 3, "theta": 4, "dtheta": 5}
         columns: dict[str, np.ndarray] = {"t": self.t}
@@ -224,7 +250,20 @@ class Simulator:
         return StepResult(np.zeros(1), x[None], delayed[None], delays)
 
     def sample_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Delays ``(S, B, 2)`` and operator reference ``(S, B, n)`` at the times ``(S,)``."""
+        """Delays ``(S, B, 2)`` and operator reference ``(S, B, n)`` at the times ``(S,)``.
+
+        Parameters
+        ----------
+        times : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        delays : ndarray, shape (S, B, 2)
+            ``T_l(t)`` and ``T_r(t)`` in seconds for each scenario.
+        reference : ndarray, shape (S, B, n)
+            Operator reference ``q_h(t)`` in radians, with each scenario's reference gains.
+        """
         delays, unit = self._sample(times)
         return np.moveaxis(delays, 0, -1), self.scenario.reference_gains[None] * unit[:, None]
 
