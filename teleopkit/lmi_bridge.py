@@ -12,8 +12,9 @@ delays ``0 <= T_l(t) <= T_l*``, ``0 <= T_r(t) <= T_r*`` (derivatives unrestricte
   arbitrary switching, so ``rate:R`` is certified the same way (sound, not rate-specific).
 
 The cost grows quickly with the number of vertices (``4^n`` gain vertices for a box of ``n``
-joints, times ``2^(n (n-1) / 2)`` configurations): a two-joint box is 32 vertices of a 12-state
-system (``benchmarks/bench_certify.py``).
+joints, times ``2^(n (n-1) / 2)`` configurations): one Clarabel solve takes about 0.5 s at 2
+vertices of the paper's 12-state system, 9 s at 8, and more than 10 minutes (2.7 GB) at 32, a
+two-joint box. Polytopes above :data:`MAX_VERTICES` are refused with a clear error instead.
 """
 
 from __future__ import annotations
@@ -23,7 +24,10 @@ from teleopkit.gains import GainPolytope
 from teleopkit.linearize import rest_systems
 from teleopkit.params import TeleoperatorParams
 
-__all__ = ["LMI_METHOD", "gain_set_system", "lmi_certificate", "lmi_delay_margin"]
+__all__ = ["LMI_METHOD", "MAX_VERTICES", "gain_set_system", "lmi_certificate", "lmi_delay_margin"]
+
+MAX_VERTICES = 16
+"""Largest polytope (gain vertices times configuration vertices) the bridge hands to the solver."""
 
 LMI_METHOD = "rcc"
 """Default LMI: Lyapunov-Krasovskii with the reciprocally convex bound. On the paper's
@@ -53,12 +57,17 @@ def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
     Raises
     ------
     ValueError
-        If the polytope is empty.
+        If the polytope is empty or has more than :data:`MAX_VERTICES` vertices.
     """
     actions = polytope.vertices()
     if actions.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
     systems = [system for action in actions for system in rest_systems(params, action)]
+    if len(systems) > MAX_VERTICES:
+        raise ValueError(
+            f"the LMI over {len(systems)} vertices ({len(actions)} gain vertices x "
+            f"{len(systems) // len(actions)} configurations) exceeds {MAX_VERTICES}: one solve "
+            "would take many minutes; fix some joint's gains to a point or use the closed form")
     return PolytopicDelaySystem(tuple(systems), variation)
 
 
