@@ -128,7 +128,7 @@ def test_falsification_inside_the_lmi_set_never_diverges(one_joint, wide_frozen)
 
 def test_two_joint_box_is_refused_before_an_impractical_solve():
     box = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
-    with pytest.raises(ValueError, match="32 vertices .* exceeds 16"):
+    with pytest.raises(ValueError, match=r"32 vertices .* exceeds 16"):
         certify_gains(paper_setup(), box, 1.0, 1.0, method="lmi")
     one_joint_point = GainBox(((1.0, 50.0), (10.0, 10.0)), ((1.0, 150.0), (30.0, 30.0)))
     system = gain_set_system(paper_setup(), GainPolytope.from_box(one_joint_point), "frozen")
