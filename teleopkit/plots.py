@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -11,7 +13,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from matplotlib.figure import Figure
 
-__all__ = ["plot_run", "save_run_figure"]
+__all__ = ["plot_run", "save_paper_figures", "save_run_figure"]
 
 
 def _joints(table: pd.DataFrame) -> int:
@@ -62,3 +64,81 @@ def save_run_figure(table: pd.DataFrame, path: str | Path, title: str = "") -> N
     fig = plot_run(table, title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _figure(rows: int, title: str) -> tuple[Figure, list[Any]]:
+    fig, axes = plt.subplots(rows, 1, figsize=(8, 2.6 * rows + 0.6), sharex=True,
+                             layout="constrained", squeeze=False)
+    fig.suptitle(title)
+    return fig, list(axes[:, 0])
+
+
+def _finish(fig: Figure, axes: list[Any], path: Path) -> Path:
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small", ncol=2)
+    axes[-1].set_xlabel("time [s]")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _styles(runs: Mapping[str, pd.DataFrame]) -> list[tuple[str, pd.DataFrame, str]]:
+    """Name, table and line style of each run (the first solid, the others dashed/dotted)."""
+    styles = ["-", "--", ":", "-."]
+    return [(name, table, styles[i % len(styles)]) for i, (name, table) in enumerate(runs.items())]
+
+
+def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) -> list[Path]:
+    """The paper's result figures (Figs. 3-7) for one scenario, one PNG each.
+
+    Parameters
+    ----------
+    runs : mapping of str to pandas.DataFrame
+        Controller name to a run as returned by
+        :meth:`teleopkit.evaluation.Rollout.to_frame` (same scenario); the first is the main
+        one (delay profile and positions are drawn for it).
+    out_dir : str or Path
+        Directory (created if needed).
+
+    Returns
+    -------
+    list of Path
+        ``delay_profile.png``, ``adaptive_gains.png``, ``positions.png``, ``tracking_error.png``
+        and ``damping_error.png``.
+    """
+    directory = Path(out_dir)
+    directory.mkdir(parents=True, exist_ok=True)
+    main_name, main = next(iter(runs.items()))
+    n = _joints(main)
+    paths = []
+    fig, axes = _figure(1, "Communication channel delay profile")
+    axes[0].plot(main["t"], main["Tl"], label=r"$T_l$ (forward)")
+    axes[0].plot(main["t"], main["Tr"], label=r"$T_r$ (backward)")
+    axes[0].set_ylabel("delay [s]")
+    paths.append(_finish(fig, axes, directory / "delay_profile.png"))
+    fig, axes = _figure(2, r"Remote gains: proportional $K_r^i$ and damping $B_r^i$")
+    for name, table, style in _styles(runs):
+        for i in range(1, n + 1):
+            axes[0].plot(table["t"], table[f"Kr_{i}"], style, label=f"{name}, joint {i}")
+            axes[1].plot(table["t"], table[f"Br_{i}"], style, label=f"{name}, joint {i}")
+    axes[0].set_ylabel(r"$K_r$ [N m/rad]")
+    axes[1].set_ylabel(r"$B_r$ [N m s/rad]")
+    paths.append(_finish(fig, axes, directory / "adaptive_gains.png"))
+    fig, axes = _figure(n, rf"{main_name}: $\theta_r^i(t)$ and $q_l^i(t - T_l)$")
+    for i in range(1, n + 1):
+        axes[i - 1].plot(main["t"], main[f"theta_{i}"], label=rf"$\theta_{{r,{i}}}$")
+        axes[i - 1].plot(main["t"], main[f"ql_delayed_{i}"], "--",
+                         label=rf"$q_{{l,{i}}}(t - T_l)$")
+        axes[i - 1].set_ylabel("position [rad]")
+    paths.append(_finish(fig, axes, directory / "positions.png"))
+    for column, title, filename in (
+            ("e_track", r"Tracking error $\theta_r - q_l(t - T_l)$", "tracking_error.png"),
+            ("e_damp", r"Damping error $\theta_r - q_r$", "damping_error.png")):
+        fig, axes = _figure(n, title)
+        for name, table, style in _styles(runs):
+            for i in range(1, n + 1):
+                axes[i - 1].plot(table["t"], table[f"{column}_{i}"], style, label=name)
+                axes[i - 1].set_ylabel(f"joint {i} [rad]")
+        paths.append(_finish(fig, axes, directory / filename))
+    return paths

@@ -1,0 +1,167 @@
+"""TD3 gradient updates per second (teleopkit vs Stable-Baselines3) and control-loop latency.
+
+python benchmarks/bench_agent.py [--updates 300] [--calls 20000] [--threads 1]
+
+Rows:
+
+- **updates/s**: full TD3 gradient steps (both critics, and every second step the actor and the
+  soft target updates) at batch 512 from a replay buffer of 100 000 random transitions, after 20
+  warm-up steps; best of 3 repetitions. teleopkit's step also projects the target and actor
+  actions onto the certified set and clips gradients (SB3's TD3 does neither). SB3 gets the same
+  networks: its actor is ``net_arch`` 128-64 (tanh output) and each of its critics' Q-networks is
+  replaced by teleopkit's two-path critic body (state 128-64, action 64, merged 60-36-1), so both
+  sides do the same arithmetic per update.
+- **latency**: one observation to one applied action, as in a 1 kHz haptic loop: numpy policy
+  (:class:`teleopkit.agent.GainPolicy`) + :meth:`SafetyLayer.project`, the torch actor +
+  projection, and the projection alone by the compiled kernel and by the cvxpy + Clarabel
+  reference (:meth:`SafetyLayer.project_reference`); p50 and p99 over ``--calls`` calls (the
+  reference over 500).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+import warnings
+
+import numpy as np
+import torch
+from torch import nn
+
+from teleopkit.agent import TD3, Critic, ReplayBuffer, TD3Config
+from teleopkit.env import FlexTeleopVectorEnv
+
+OBS, ACT = 14, 4
+
+
+def filled_buffer(layer, size: int = 100_000) -> ReplayBuffer:
+    rng = np.random.default_rng(0)
+    buffer = ReplayBuffer(size, OBS, ACT, seed=0)
+    actions = layer.project_batch(rng.uniform(0, 150, (size, ACT))).action
+    buffer.add(rng.normal(size=(size, OBS)), actions, -rng.random(size),
+               rng.normal(size=(size, OBS)), np.zeros(size))
+    return buffer
+
+
+def rate(step, count: int, repeats: int = 3) -> float:
+    for _ in range(20):
+        step()
+    best = 0.0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(count):
+            step()
+        best = max(best, count / (time.perf_counter() - start))
+    return best
+
+
+def teleopkit_rate(env, count: int) -> float:
+    agent = TD3.for_env(env, TD3Config(), seed=0)
+    buffer = filled_buffer(env.safety_layer)
+    return rate(lambda: agent.update(buffer.sample(512)), count)
+
+
+class _TwoPath(nn.Module):
+    """teleopkit's critic body taking SB3's concatenated ``[obs, action]`` input."""
+
+    def __init__(self, low: np.ndarray, high: np.ndarray) -> None:
+        super().__init__()
+        self.critic = Critic(OBS, low, high, torch.Generator().manual_seed(0), TD3Config())
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.critic(x[:, :OBS], x[:, OBS:])[:, None]
+
+
+def sb3_rate(count: int) -> float:
+    import gymnasium
+    from stable_baselines3 import TD3 as SB3TD3
+
+    single = gymnasium.make("teleopkit/FlexTeleop-v0", episode_length=0.1)
+    with warnings.catch_warnings():  # float64 bounds of the observation space cast to float32
+        warnings.simplefilter("ignore", RuntimeWarning)
+        single = gymnasium.wrappers.RescaleAction(single, -1.0, 1.0)
+    model = SB3TD3("MlpPolicy", single, learning_rate=1e-4, batch_size=512, buffer_size=100_000,
+                   policy_kwargs={"net_arch": {"pi": [128, 64], "qf": [128, 64]}}, seed=0,
+                   device="cpu", verbose=0)
+    policy = model.policy
+    for critic in (policy.critic, policy.critic_target):
+        for i in range(len(critic.q_networks)):
+            body = _TwoPath(-np.ones(ACT), np.ones(ACT))
+            critic.q_networks[i] = body
+            critic.add_module(f"qf{i}", body)
+    policy.critic_target.load_state_dict(policy.critic.state_dict())
+    policy.critic.optimizer = torch.optim.Adam(policy.critic.parameters(), lr=1e-4)
+    rng = np.random.default_rng(0)
+    buffer = model.replay_buffer
+    size = buffer.buffer_size
+    buffer.observations[:size, 0] = rng.normal(size=(size, OBS))
+    buffer.next_observations[:size, 0] = rng.normal(size=(size, OBS))
+    buffer.actions[:size, 0] = rng.uniform(-1, 1, (size, ACT))
+    buffer.rewards[:size, 0] = -rng.random(size)
+    buffer.full = True
+    model._logger = _NullLogger()
+    return rate(lambda: model.train(gradient_steps=1, batch_size=512), count)
+
+
+class _NullLogger:
+    def record(self, *args, **kwargs) -> None:
+        pass
+
+
+def percentiles(call, count: int) -> tuple[float, float]:
+    for _ in range(200):
+        call()
+    times = np.empty(count)
+    for i in range(count):
+        start = time.perf_counter_ns()
+        call()
+        times[i] = time.perf_counter_ns() - start
+    return float(np.percentile(times, 50) / 1e3), float(np.percentile(times, 99) / 1e3)
+
+
+def latency_rows(env, calls: int) -> list[tuple[str, float, float]]:
+    agent = TD3.for_env(env, TD3Config(), seed=0)
+    policy = agent.policy()
+    layer = env.safety_layer
+    obs_batch, _ = env.reset(seed=0)
+    obs = obs_batch[0]
+    obs_torch = torch.as_tensor(obs[None], dtype=torch.float32)
+    raw = np.array([40.0, 10.0, 60.0, 30.0])  # outside the set: a real projection
+
+    def torch_policy() -> np.ndarray:
+        with torch.no_grad():
+            action = agent.actor(obs_torch)[0].numpy().astype(np.float64)
+        return layer.project(action).action
+
+    return [
+        ("numpy policy + projection", *percentiles(lambda: layer.project(policy(obs)), calls)),
+        ("torch actor + projection", *percentiles(torch_policy, calls)),
+        ("projection (compiled kernel)", *percentiles(lambda: layer.project(raw), calls)),
+        ("projection (cvxpy + Clarabel)",
+         *percentiles(lambda: layer.project_reference(raw), 500)),
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--updates", type=int, default=300)
+    parser.add_argument("--calls", type=int, default=20_000)
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    env = FlexTeleopVectorEnv(1, episode_length=0.1)
+    print(f"torch {torch.__version__}, {args.threads} thread(s), "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{'TD3 gradient updates/s (batch 512)':<40} {'updates/s':>10}")
+    print(f"{'teleopkit':<40} {teleopkit_rate(env, args.updates):>10.1f}")
+    print(f"{'stable-baselines3':<40} {sb3_rate(args.updates):>10.1f}")
+    print()
+    print(f"{'latency, one sample':<40} {'p50 us':>10} {'p99 us':>10}")
+    for name, p50, p99 in latency_rows(env, args.calls):
+        print(f"{name:<40} {p50:>10.1f} {p99:>10.1f}")
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

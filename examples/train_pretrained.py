@@ -1,0 +1,76 @@
+"""Train the pretrained TD3 gain tuner shipped as ``teleopkit/data/td3_policy.npz``.
+
+Run from the repository root (one core)::
+
+    NUMBA_NUM_THREADS=1 python examples/train_pretrained.py
+
+It trains with the recipe below (seed 0; the same command resumes an interrupted run), finds the
+best static certified gains on the baseline training scenarios
+(:func:`teleopkit.baselines.best_static_gains` with its defaults), stores them in the metadata of
+the best policy by validation cost, writes the file and prints the held-out comparison that
+``teleopkit reproduce`` regenerates. Training is deterministic: the run is bit for bit the same
+on every execution with this code (two runs in separate processes gave identical weights).
+
+Measured on the 2-core development machine, the other core busy: 25 rounds (1.6 million
+transitions, 96 000 gradient updates) in 18 minutes including validation; the best validation
+cost came at round 24; held-out cost (32 scenarios, seed 7777) 18 % below the best static gains
+and 38 % below the paper's fixed gains. Seed 1 with the same recipe: 14 % below the best static
+gains. The cost of the last actor fluctuates from round to round (seed 0: 4 to 17 % below the
+best static gains between rounds 19 and 25), which is why the best actor by validation is kept.
+
+The recipe is the paper's TD3 (DESIGN.md section 6) except for the learning rates: 1e-3
+instead of 1e-4 for actor and critics. After 10 rounds, 1e-4 was 25 % above the best static
+gains, 1e-3 9 % below (same seed and data). Rewards are scaled by 0.01 in the critic targets.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch
+
+from teleopkit.agent import TD3Config
+from teleopkit.baselines import best_static_gains, fixed_gains
+from teleopkit.evaluation import ConstantGains, evaluate, summarise, to_markdown
+from teleopkit.training import TrainConfig, train
+
+RECIPE = TrainConfig(
+    total_steps=1_600_000,  # 25 rounds of 16 scenarios x 40 s: 96 000 gradient updates
+    num_envs=16,
+    seed=0,
+    episode_length=40.0,
+    learning_starts=64_000,  # the first round: uniform random gains, projected
+    updates_per_step=1,
+    buffer_size=1_000_000,
+    validation_scenarios=16,
+    validation_seed=4_242,
+    td3=TD3Config(actor_lr=1e-3, critic_lr=1e-3, reward_scale=0.01),
+)
+DATA = Path(__file__).resolve().parents[1] / "teleopkit" / "data" / "td3_policy.npz"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="Train the shipped pretrained policy.")
+    parser.add_argument("--out", type=Path, default=Path("runs/pretrained"),
+                        help="training directory (checkpoint, log)")
+    parser.add_argument("--data", type=Path, default=DATA, help="where to write the policy")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    result = train(RECIPE, args.out, resume=True)
+    static = best_static_gains()
+    policy = result.best_policy
+    assert policy is not None
+    policy.metadata.update(best_static_gains=static.gains.tolist(),
+                           best_static_cost=static.cost,
+                           recipe="examples/train_pretrained.py")
+    args.data.parent.mkdir(parents=True, exist_ok=True)
+    policy.save(args.data)
+    print(f"wrote {args.data} ({args.data.stat().st_size} bytes)")
+    per_scenario = evaluate({"TD3": policy, "fixed": ConstantGains(fixed_gains()),
+                             "best static": ConstantGains(static.gains)})
+    print(to_markdown(summarise(per_scenario), reference="best static"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,182 @@
+"""Baselines, held-out evaluation, reports and the train/evaluate/reproduce command line."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from teleopkit.agent import TD3, GainPolicy
+from teleopkit.baselines import FIXED_GAINS, best_static_gains, fixed_gains, static_cost
+from teleopkit.cli import main
+from teleopkit.env import FlexTeleopConfig, FlexTeleopVectorEnv, default_certificate
+from teleopkit.evaluation import ConstantGains, evaluate, rollout, save_report
+from teleopkit.safety import SafetyLayer
+from teleopkit.scenarios import paper_scenarios
+
+torch.set_num_threads(1)
+
+SHORT = FlexTeleopConfig(episode_length=0.3)
+ONE_SECOND = FlexTeleopConfig(episode_length=1.0)  # the delayed operator motion arrives at 0.45 s
+
+
+@pytest.fixture(scope="module")
+def layer():
+    return SafetyLayer.from_certificate(default_certificate())
+
+
+@pytest.fixture(scope="module")
+def policy():
+    agent = TD3.for_env(FlexTeleopVectorEnv(1, SHORT), seed=0)
+    with torch.no_grad():
+        agent.actor.head.bias.copy_(torch.tensor([2.0, -1.0, -3.0, 1.0]))  # some outside the set
+    return agent.policy({"best_static_gains": [3.0, 7.0, 8.0, 18.0]})
+
+
+def wild(obs):
+    """Gains far outside the set, with NaN and inf."""
+    rng = np.random.default_rng(len(obs) + int(abs(obs).sum() * 1e6) % 1000)
+    action = rng.uniform(-100, 400, (len(obs), 4))
+    action[rng.random(action.shape) < 0.1] = np.nan
+    action[:, 0][rng.random(len(obs)) < 0.1] = np.inf
+    return action
+
+
+def test_static_cost_is_the_environment_return(layer):
+    gains = layer.project_batch(np.array([[10.0, 10, 30, 30], [40.0, 3, 60, 150]])).action
+    costs = static_cost(gains, paper_scenarios(11, 3), ONE_SECOND)
+    assert np.ptp(costs) > 1
+    for gain, cost in zip(gains, costs, strict=True):
+        run = rollout(ConstantGains(gain), 3, 11, ONE_SECOND)
+        np.testing.assert_allclose(-run.reward.sum(axis=0), cost, rtol=1e-12)
+
+
+def test_every_applied_action_lies_in_the_set(layer, policy):
+    for controller in (policy, wild, ConstantGains(np.array([60.0, 0.0, 1.0, 200.0]))):
+        run = rollout(controller, 4, 3, SHORT)
+        assert run.unsafe_actions == 0
+        assert layer.polytope.contains(run.applied).all()
+    assert np.any(np.linalg.norm(run.raw - run.applied, axis=-1) > 1)  # the layer did work
+
+
+def test_evaluate_and_summarise(policy, tmp_path):
+    per = evaluate({"TD3": [policy, policy], "fixed": ConstantGains(fixed_gains())},
+                   scenarios=3, seed=5, config=SHORT)
+    assert len(per) == 9 and set(per["controller"]) == {"TD3", "fixed"}
+    summary = save_report(per, tmp_path, reference="fixed")
+    assert list(summary.index) == ["TD3", "fixed"]
+    td3 = per[per["controller"] == "TD3"]
+    assert summary.loc["TD3", "cost_mean"] == pytest.approx(td3["cost"].mean())
+    assert summary.loc["TD3", "cost_std"] == pytest.approx(td3["cost"].std())
+    assert summary.loc["TD3", "cost_seed_std"] == pytest.approx(0.0)  # the same policy twice
+    assert np.isnan(summary.loc["fixed", "cost_seed_std"])
+    assert summary.loc["TD3", "policies"] == 2 and summary["unsafe_actions"].sum() == 0
+    assert (per["rms_track"] > 0).all() and (per["iae_damp"] > 0).all()
+    table = (tmp_path / "summary.md").read_text()
+    assert table.startswith("| controller | cost |") and "+0.0 %" in table
+    assert pd.read_csv(tmp_path / "per_scenario.csv").shape == per.shape
+
+
+def test_held_out_scenarios_depend_on_the_seed_only(policy):
+    a = rollout(policy, 2, 8, ONE_SECOND).metrics()
+    b = rollout(policy, 2, 8, ONE_SECOND).metrics()
+    c = rollout(policy, 2, 9, ONE_SECOND).metrics()
+    pd.testing.assert_frame_equal(a, b)
+    assert not np.allclose(a["cost"], c["cost"])
+
+
+def test_best_static_gains_are_certified_and_beat_the_grid_and_the_paper(layer):
+    config = FlexTeleopConfig(episode_length=1.0)
+    found = best_static_gains(layer, scenarios=3, seed=1, grid_points=4, max_evaluations=40,
+                              config=config)
+    assert layer.polytope.contains(found.gains)
+    assert found.cost <= found.grid_cost
+    scenario = paper_scenarios(1, 3)
+    assert found.cost == pytest.approx(static_cost(found.gains, scenario, config).mean())
+    assert found.cost < static_cost(fixed_gains(*FIXED_GAINS), scenario, config).mean()
+    assert found.evaluations <= 16 + 41
+
+
+def test_rollout_frame_has_the_figure_columns(policy, tmp_path):
+    from teleopkit.plots import save_paper_figures
+
+    frame = rollout(policy, 1, 0, SHORT).to_frame()
+    assert len(frame) == 31 and np.isnan(frame["Tl"].iloc[0]) and frame["Tl"].iloc[1:].notna().all()
+    paths = save_paper_figures({"TD3": frame, "fixed": frame}, tmp_path)
+    assert [p.name for p in paths] == ["delay_profile.png", "adaptive_gains.png", "positions.png",
+                                       "tracking_error.png", "damping_error.png"]
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in paths)
+
+
+# --- command line -----------------------------------------------------------------------------
+
+def teleopkit(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "teleopkit.cli", *args], capture_output=True,
+                          text=True, timeout=300,
+                          env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+
+
+def test_evaluate_command_writes_the_report(policy, tmp_path):
+    path = tmp_path / "policy.npz"
+    policy.save(path)
+    done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
+                     "--out", str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    assert "| TD3 |" in done.stdout and "unsafe actions: 0" in done.stdout
+    summary = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)
+    assert list(summary.index) == ["TD3", "fixed", "best static"]
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["train", "--steps", "0"], "--steps"),
+    (["train", "--envs", "-2"], "--envs"),
+    (["train", "--seed", "x"], "--seed"),
+    (["evaluate"], "--policy"),
+    (["evaluate", "--policy", "/no/such/policy.npz"], "policy.npz"),
+    (["evaluate", "--policy", "NOT_A_POLICY"], "not a teleopkit policy"),
+    (["evaluate", "--policy", "POLICY", "--scenarios", "0"], "--scenarios"),
+    (["evaluate", "--policy", "POLICY", "--duration", "-1"], "--duration"),
+    (["reproduce", "--scenarios", "0"], "--scenarios"),
+])
+def test_bad_input_exits_2_with_one_line(policy, tmp_path, capsys, args, needle):
+    junk = tmp_path / "junk.npz"
+    junk.write_text("junk")
+    good = tmp_path / "good.npz"
+    policy.save(good)
+    args = [str(junk) if a == "NOT_A_POLICY" else str(good) if a == "POLICY" else a
+            for a in args]
+    assert main([*args, "--out", str(tmp_path / "out")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], lines
+    assert lines[0].startswith("teleopkit: error:")
+
+
+def test_train_command_refuses_to_mix_runs(tmp_path):
+    """A real process: exit 2, one line, no traceback."""
+    (tmp_path / "checkpoint.pt").write_bytes(b"x")
+    done = teleopkit("train", "--steps", "10", "--out", str(tmp_path))
+    assert done.returncode == 2 and "--resume" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+
+
+def test_shipped_policy_loads_and_is_small():
+    policy = GainPolicy.pretrained()
+    assert policy.action_dim == 4 and len(policy.metadata["best_static_gains"]) == 4
+    from importlib import resources
+
+    with resources.as_file(resources.files("teleopkit") / "data" / "td3_policy.npz") as path:
+        assert path.stat().st_size < 300_000
+
+
+@pytest.mark.slow
+def test_reproduce_command_writes_figures_and_table(tmp_path):
+    done = teleopkit("reproduce", "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"delay_profile.png", "adaptive_gains.png", "positions.png", "tracking_error.png",
+            "damping_error.png", "summary.md", "summary.csv"} <= names

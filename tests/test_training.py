@@ -1,0 +1,178 @@
+"""Training loop: learning on a tiny problem, logs, checkpoints, exact resume after a kill."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from teleopkit.agent import TD3, GainPolicy, TD3Config
+from teleopkit.env import FlexTeleopConfig, FlexTeleopVectorEnv
+from teleopkit.evaluation import rollout
+from teleopkit.training import (
+    BEST_POLICY,
+    CHECKPOINT,
+    LOG,
+    POLICY,
+    TrainConfig,
+    load_checkpoint,
+    train,
+)
+
+torch.set_num_threads(1)
+
+# 4 scenarios x 10 periods = 40 transitions per round
+TINY = TrainConfig(total_steps=40 * 12, num_envs=4, seed=5, episode_length=0.1,
+                   learning_starts=80, buffer_size=2000, td3=TD3Config(batch_size=32))
+
+
+def flat(agent):
+    modules = [agent.actor, agent.critics, agent.actor_target, agent.critic_targets]
+    return torch.cat([p.detach().flatten() for m in modules for p in m.parameters()])
+
+
+def test_short_training_improves_the_return():
+    """Falsifiable: over the first 0.3 s (before any delayed operator motion reaches the remote
+    side, so every scenario is the same control problem: the opening transient) the initial
+    actor asks for the centre of the box (K_r = 25.5, B_r = 75.5) and costs 2188, the best
+    constant gains about 1833 (0.84 times). 2 160 updates must cut the initial cost by 6 %."""
+    config = TrainConfig(total_steps=8 * 30 * 20, num_envs=8, seed=1, episode_length=0.3,
+                         learning_starts=8 * 30 * 2, updates_per_step=4, buffer_size=20_000,
+                         td3=TD3Config(batch_size=64, actor_lr=1e-3, critic_lr=1e-3))
+    result = train(config, progress=False)
+    env_config = FlexTeleopConfig(episode_length=0.3)
+    initial = TD3.for_env(FlexTeleopVectorEnv(1, env_config), config.td3).policy()
+    before = rollout(initial, 4, 99, env_config).metrics()["cost"].mean()
+    after = rollout(result.policy, 4, 99, env_config).metrics()["cost"].mean()
+    assert before == pytest.approx(2188, rel=1e-3)
+    assert after < 0.94 * before, (before, after)
+
+
+def test_log_is_a_readable_csv_with_one_row_per_round(tmp_path):
+    result = train(TINY, tmp_path, progress=False)
+    log = pd.read_csv(tmp_path / LOG)
+    assert list(log.columns) == ["step", "round", "episode_return", "critic_loss", "actor_loss",
+                                 "exploration_std", "validation_cost", "wall_time",
+                                 "unsafe_actions"]
+    assert log["step"].tolist() == [40 * k for k in range(1, 13)]
+    # learning starts with the last step of round 2 (80 transitions)
+    assert log["critic_loss"].iloc[:1].isna().all() and log["critic_loss"].iloc[1:].notna().all()
+    assert (log["unsafe_actions"] == 0).all() and log["wall_time"].is_monotonic_increasing
+    assert np.all(log["episode_return"] < 0)
+    pd.testing.assert_frame_equal(log, result.log, check_dtype=False)
+    assert (tmp_path / POLICY).exists() and (tmp_path / "config.json").exists()
+    best = GainPolicy.load(tmp_path / BEST_POLICY)
+    assert best.metadata["validation_cost"] == log["validation_cost"].min()
+    assert best.metadata["rounds"] == log["round"][log["validation_cost"].idxmin()]
+    assert result.best_policy is not None
+    obs = np.random.default_rng(0).normal(size=(3, 14))
+    np.testing.assert_array_equal(result.best_policy(obs), best(obs))
+    last = int(log["validation_cost"].idxmin()) == len(log) - 1
+    assert np.array_equal(result.policy(obs), best(obs)) == last
+
+
+def test_seeded_runs_are_reproducible():
+    a = train(TINY, progress=False)
+    b = train(TINY, progress=False)
+    c = train(replace(TINY, seed=6), progress=False)
+    assert torch.equal(flat(a.agent), flat(b.agent))
+    assert not torch.equal(flat(a.agent), flat(c.agent))
+
+
+def test_resume_continues_bit_identically(tmp_path):
+    straight = train(TINY, tmp_path / "straight", progress=False)
+    half = replace(TINY, total_steps=TINY.total_steps // 2)
+    train(half, tmp_path / "split", progress=False)
+    assert load_checkpoint(tmp_path / "split" / CHECKPOINT)["counters"]["rounds"] == 6
+    resumed = train(TINY, tmp_path / "split", resume=True, progress=False)
+    assert torch.equal(flat(straight.agent), flat(resumed.agent))
+    obs = np.random.default_rng(0).normal(size=(3, 14))
+    np.testing.assert_array_equal(straight.best_policy(obs), resumed.best_policy(obs))
+    columns = ["step", "episode_return", "critic_loss", "actor_loss", "validation_cost"]
+    pd.testing.assert_frame_equal(straight.log[columns], resumed.log[columns])
+
+
+def test_interrupted_save_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
+    saves = []
+    real_replace = os.replace
+
+    def flaky_replace(src, dst):
+        if str(dst).endswith(CHECKPOINT):
+            saves.append(dst)
+            if len(saves) == 5:
+                raise KeyboardInterrupt  # dies between writing the temporary and the move
+        real_replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", flaky_replace)
+    with pytest.raises(KeyboardInterrupt):
+        train(TINY, tmp_path, progress=False)
+    monkeypatch.setattr(os, "replace", real_replace)
+    assert load_checkpoint(tmp_path / CHECKPOINT)["counters"]["rounds"] == 4
+    resumed = train(TINY, tmp_path, resume=True, progress=False)
+    assert torch.equal(flat(resumed.agent), flat(train(TINY, progress=False).agent))
+
+
+KILLED_RUN = textwrap.dedent("""
+    import sys, time, torch
+    from dataclasses import replace
+    from teleopkit.agent import TD3Config
+    from teleopkit.training import TrainConfig, train
+    torch.set_num_threads(1)
+    config = TrainConfig(total_steps=40 * 12, num_envs=4, seed=5, episode_length=0.1,
+                         learning_starts=80, buffer_size=2000, td3=TD3Config(batch_size=32))
+    train(config, sys.argv[1], progress=False, on_round=lambda r: time.sleep(0.3))
+""")
+
+
+def test_killed_process_resumes_to_the_same_parameters(tmp_path):
+    script = tmp_path / "run.py"
+    script.write_text(KILLED_RUN)
+    out = tmp_path / "run"
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+    process = subprocess.Popen([sys.executable, str(script), str(out)], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and process.poll() is None:
+            # the log of round 4 is written after the checkpoint of round 3
+            if (out / LOG).exists() and len(pd.read_csv(out / LOG)) >= 4:
+                break
+            time.sleep(0.05)
+        assert process.poll() is None, process.stderr.read().decode() if process.stderr else ""
+        process.send_signal(signal.SIGKILL)
+    finally:
+        process.wait()
+    rounds = load_checkpoint(out / CHECKPOINT)["counters"]["rounds"]  # loads: not corrupt
+    assert 3 <= rounds < 12
+    resumed = train(TINY, out, resume=True, progress=False)
+    assert torch.equal(flat(resumed.agent), flat(train(TINY, progress=False).agent))
+    assert len(pd.read_csv(out / LOG)) == 12
+
+
+def test_existing_checkpoint_needs_resume_and_the_same_settings(tmp_path):
+    train(replace(TINY, total_steps=80), tmp_path, progress=False)
+    with pytest.raises(ValueError, match="resume"):
+        train(TINY, tmp_path, progress=False)
+    with pytest.raises(ValueError, match="different settings"):
+        train(replace(TINY, seed=9), tmp_path, resume=True, progress=False)
+
+
+@pytest.mark.parametrize("bad", [{"total_steps": 0}, {"num_envs": 0}, {"learning_starts": 1},
+                                 {"episode_length": 0.0}, {"seed": -1},
+                                 {"validation_scenarios": -1}])
+def test_config_rejects_bad_values(bad):
+    with pytest.raises(ValueError):
+        replace(TINY, **bad)
+
+
+def test_config_round_trips_through_plain_data():
+    assert TrainConfig.from_dict(TINY.to_dict()) == TINY
