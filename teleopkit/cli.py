@@ -9,11 +9,18 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 
 from teleopkit.simulator import DEFAULT_DT
+
+if TYPE_CHECKING:  # the commands import lazily: ``teleopkit --help`` must stay fast
+    import pandas as pd
+
+    from teleopkit.agent import GainPolicy
+    from teleopkit.evaluation import Controller
 
 __all__ = ["cli", "main"]
 
@@ -83,8 +90,10 @@ def simulate(kr: str, br: str, duration: float, delay: str, seed: int, dt: float
               help="Forward delay bound T_l* [s].")
 @click.option("--tr-max", type=float, default=1.0, show_default=True,
               help="Backward delay bound T_r* [s].")
-@click.option("--method", type=click.Choice(["nuno"]), default="nuno", show_default=True,
-              help="Certification method (the closed form of Nuño et al.).")
+@click.option("--method", type=click.Choice(["nuno", "lmi", "all"]), default="nuno",
+              show_default=True,
+              help="nuno: closed form (instant); lmi: LK/LMI on the linearisation (seconds per "
+                   "joint box, minutes for two joints); all: both, the best answer first.")
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
               help="frozen | switching | rate:R (R in gain units per second).")
 @click.option("--json", "as_json", is_flag=True, help="Print the certificate as JSON.")
@@ -93,7 +102,12 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     """Certify that every remote gain in the ranges is stable for the delay bounds."""
     from dataclasses import replace
 
-    from teleopkit.certification import certify_gains, parse_gain_variation
+    from teleopkit.certification import (
+        best_certificate,
+        certify_gains,
+        methods_for,
+        parse_gain_variation,
+    )
     from teleopkit.gains import GainBox, parse_range
     from teleopkit.params import PDGains, paper_setup
     from teleopkit.report import certificate_table
@@ -101,8 +115,9 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
     gain_variation = parse_gain_variation(variation)
-    results = [certify_gains(params, box, tl_max, tr_max, method, gain_variation)]
-    best = max(results, key=lambda c: (c.certified, c.delay_margin))
+    results = [certify_gains(params, box, tl_max, tr_max, name, gain_variation)
+               for name in methods_for(method, gain_variation)]
+    best = best_certificate(results)
     if as_json:
         import json
 
@@ -113,6 +128,122 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
         click.echo(certificate_table(results))
     return 0 if best.certified else 1
 
+
+def _single_thread() -> None:
+    """One torch thread: the second core belongs to the simulator or to other work."""
+    import torch
+
+    torch.set_num_threads(1)
+
+
+@cli.command("train")
+@click.option("--steps", type=click.IntRange(min=1), default=1_600_000, show_default=True,
+              help="Transitions to collect over all environments (rounded up to whole "
+                   "episodes of every environment).")
+@click.option("--envs", type=click.IntRange(min=1), default=16, show_default=True,
+              help="Scenarios simulated together.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Master seed of the run.")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("runs/train"), show_default=True,
+              help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz "
+                   "and config.json.")
+@click.option("--resume", is_flag=True, help="Continue the checkpoint in --out.")
+def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool) -> None:
+    """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
+
+    The other settings are the defaults of teleopkit.training.TrainConfig: 40 s episodes, the
+    paper's TD3 with learning rates 1e-3, best policy kept by validation cost.
+    """
+    from teleopkit.training import TrainConfig, train
+
+    _single_thread()
+    config = TrainConfig(total_steps=steps, num_envs=envs, seed=seed,
+                         learning_starts=max(envs, min(TrainConfig.learning_starts, steps)))
+    result = train(config, out, resume=resume)
+    row = result.log.iloc[-1]
+    click.echo(f"trained {int(row['step'])} steps; best validation cost "
+               f"{result.log['validation_cost'].min():.5g}; policies in {out}")
+
+
+def _best_static(policies: Sequence[GainPolicy]) -> np.ndarray:
+    """Best static gains stored with the first policy, or found now (about 30 s)."""
+    from teleopkit.baselines import best_static_gains
+
+    stored = policies[0].metadata.get("best_static_gains")
+    if stored is not None:
+        return np.asarray(stored, dtype=float)
+    click.echo("searching the best static certified gains (no stored result) ...", err=True)
+    return best_static_gains().gains
+
+
+def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, duration: float,
+             out: Path) -> pd.DataFrame:
+    """Evaluate TD3, fixed and best static gains; write the report; return the summary."""
+    from dataclasses import replace
+
+    from teleopkit.baselines import fixed_gains
+    from teleopkit.env import FlexTeleopConfig
+    from teleopkit.evaluation import ConstantGains, evaluate, save_report, to_markdown
+
+    config = replace(FlexTeleopConfig(), episode_length=duration)
+    controllers: dict[str, Controller | list[Controller]] = {
+        "TD3": list(policies), "fixed": ConstantGains(fixed_gains()),
+        "best static": ConstantGains(_best_static(policies))}
+    per_scenario = evaluate(controllers, scenarios, seed, config)
+    summary = save_report(per_scenario, out, reference="best static")
+    click.echo(to_markdown(summary, reference="best static"), nl=False)
+    return summary
+
+
+@cli.command("evaluate")
+@click.option("--policy", "policy_files", required=True, multiple=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Policy file (policy.npz); repeat for several training seeds.")
+@click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
+              help="Held-out scenarios.")
+@click.option("--seed", type=click.IntRange(min=0), default=7_777, show_default=True,
+              help="Seed of the held-out scenarios (teleopkit.evaluation.EVAL_SEED).")
+@click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=40.0,
+              show_default=True, help="Episode length [s].")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("runs/evaluate"), show_default=True,
+              help="Directory for per_scenario.csv, summary.csv and summary.md.")
+def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
+                     duration: float, out: Path) -> int:
+    """Compare TD3 policies with fixed and best static certified gains on held-out scenarios."""
+    from teleopkit.agent import GainPolicy
+
+    _single_thread()
+    policies = [GainPolicy.load(path) for path in policy_files]
+    summary = _compare(policies, scenarios, seed, duration, out)
+    unsafe = int(summary["unsafe_actions"].sum())
+    click.echo(f"report in {out}; unsafe actions: {unsafe}")
+    return 0 if unsafe == 0 else 1
+
+
+@cli.command("reproduce")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("runs/reproduce"), show_default=True,
+              help="Directory for the figures (PNG) and the comparison table.")
+@click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
+              help="Held-out scenarios of the comparison table.")
+def reproduce_command(out: Path, scenarios: int) -> int:
+    """Paper figures and comparison table from the shipped pretrained policy (no training)."""
+    from teleopkit.agent import GainPolicy
+    from teleopkit.evaluation import EVAL_SEED, ConstantGains, rollout
+    from teleopkit.plots import save_paper_figures
+
+    _single_thread()
+    policy = GainPolicy.pretrained()
+    summary = _compare([policy], scenarios, EVAL_SEED, 40.0, out)
+    runs = {"TD3": rollout(policy, 1, EVAL_SEED).to_frame(),
+            "best static": rollout(ConstantGains(_best_static([policy])), 1,
+                                   EVAL_SEED).to_frame()}
+    paths = save_paper_figures(runs, out)
+    unsafe = int(summary["unsafe_actions"].sum())
+    click.echo(f"wrote {len(paths)} figures and the table to {out}; unsafe actions: {unsafe}")
+    return 0 if unsafe == 0 else 1
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line and return its exit code (bad input: 2, one line, no traceback).
@@ -143,6 +274,116 @@ def main(argv: Sequence[str] | None = None) -> int:
         click.echo("teleopkit: aborted", err=True)
         return 1
     return int(result) if isinstance(result, int) else 0
+
+
+
+def _campaign_client(workers: int | None, scheduler: str | None) -> str | None:
+    """The ``client`` argument of :func:`~teleopkit.campaign.run_campaign` from the options."""
+    if scheduler is not None and workers is not None:
+        raise click.UsageError("--workers sizes the local cluster; it cannot be combined with "
+                               "--scheduler")
+    if scheduler is not None and not scheduler.strip():
+        raise click.BadParameter("--scheduler needs an address such as tcp://HOST:8786")
+    return scheduler
+
+
+@cli.command("campaign")
+@click.argument("spec", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Result table, .parquet or .csv (finished chunks are kept in OUT.chunks/).")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes of the local Dask cluster [default: every usable core].")
+@click.option("--scheduler", default=None,
+              help="Address of a running Dask scheduler (tcp://HOST:8786) instead of a local "
+                   "cluster, or 'synchronous' to run in this process.")
+@click.option("--chunk", type=click.IntRange(min=1), default=64, show_default=True,
+              help="Scenarios per task, simulated as one batch.")
+@click.option("--resume", is_flag=True,
+              help="Continue the campaign whose chunks are in OUT.chunks/ (only missing chunks "
+                   "run).")
+def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str | None,
+                     chunk: int, resume: bool) -> int:
+    """Run a robustness campaign (YAML, JSON or TOML SPEC) on Dask; one row per scenario."""
+    import time
+
+    from teleopkit.campaign import CampaignSpec, run_campaign
+
+    client = _campaign_client(workers, scheduler)
+    loaded = CampaignSpec.from_file(spec)
+    chunks = out.with_name(out.name + ".chunks")
+    if not resume and any(chunks.glob("chunk-*.parquet")):
+        raise click.UsageError(f"{chunks} holds chunks of an earlier run: pass --resume to "
+                               "continue it, or delete it")
+    start = time.perf_counter()
+    try:
+        table = run_campaign(loaded, out, client=client, chunk=chunk, resume=resume,
+                             workers=workers, progress=sys.stderr.isatty())
+    except ImportError as error:
+        raise click.ClickException(str(error)) from None
+    diverged = int(table["diverged"].sum())
+    click.echo(f"wrote {len(table)} scenarios to {out} in {time.perf_counter() - start:.1f} s; "
+               f"diverged: {diverged}")
+    return 0
+
+
+@cli.command("falsify")
+@click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
+@click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
+@click.option("--tl-max", type=float, default=1.0, show_default=True,
+              help="Forward delay bound T_l* [s].")
+@click.option("--tr-max", type=float, default=1.0, show_default=True,
+              help="Backward delay bound T_r* [s].")
+@click.option("--method", type=click.Choice(["nuno", "lmi"]), default="nuno", show_default=True,
+              help="Certificate whose set is searched (lmi: minutes for two joints).")
+@click.option("--gain-variation", "variation", default="frozen", show_default=True,
+              help="Gain class of the certificate: frozen | switching | rate:R.")
+@click.option("--switch-gains/--certified-gains", "switch_gains", default=None,
+              help="Let the adversary switch gains even if the certificate covers frozen gains "
+                   "only (a probe outside the certificate) [default: as the certificate].")
+@click.option("--delays", type=click.Choice(["square", "segments"]), default="square",
+              show_default=True, help="Adversarial delay pattern.")
+@click.option("--objective", type=click.Choice(["energy_growth", "error_growth", "energy"]),
+              default="energy_growth", show_default=True, help="What the adversary maximises.")
+@click.option("--search", "search_method", type=click.Choice(["cma", "random"]), default="cma",
+              show_default=True, help="CMA-ES or random search.")
+@click.option("--budget", type=click.IntRange(min=2), default=256, show_default=True,
+              help="Runs to simulate.")
+@click.option("--population", type=click.IntRange(min=2), default=16, show_default=True,
+              help="Runs per generation (one simulator batch).")
+@click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=20.0,
+              show_default=True, help="Seconds per run.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the search.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CSV file for the worst run's trajectory.")
+def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, method: str,
+                    variation: str, switch_gains: bool | None, delays: str, objective: str,
+                    search_method: str, budget: int, population: int, duration: float,
+                    seed: int, out: Path | None) -> int:
+    """Search the worst adversarial delays and gains in a certified set (exit 1: a run diverged)."""
+    from teleopkit.certification import certify_gains
+    from teleopkit.falsify_search import SearchSpace, search
+    from teleopkit.gains import GainBox, parse_range
+    from teleopkit.params import paper_setup
+
+    params = paper_setup()
+    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
+    certificate = certify_gains(params, box, tl_max, tr_max, method, variation)
+    space = SearchSpace(params, certificate, switch_gains, delays, duration=duration)
+    try:
+        result = search(space, objective, search_method, budget,  # type: ignore[arg-type]
+                        population, seed)
+    except ImportError as error:
+        raise click.ClickException(str(error)) from None
+    if out is not None:
+        try:
+            result.trajectory.to_csv(out, index=False)
+        except OSError as error:
+            raise click.FileError(str(out), hint=error.strerror) from None
+    click.echo(result.summary())
+    if result.finding:
+        click.echo("FINDING: a run inside the certified class diverged", err=True)
+    return 1 if result.diverged else 0
 
 
 if __name__ == "__main__":
