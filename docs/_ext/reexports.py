@@ -1,0 +1,54 @@
+"""Resolve cross-references to names re-exported at the top of a package.
+
+``teleopkit.simulate`` is defined in :mod:`teleopkit.simulator` and documented there, so a
+reference to ``teleopkit.simulate`` (or ``certify.max_delay``, or an attribute such as
+``teleopkit.TraceDelay.from_csv``) finds no target. This extension looks the name up at build time
+and retries with the module where the object is defined.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from typing import Any
+
+PACKAGES = ("teleopkit", "certify")
+
+
+def _defining_name(target: str) -> str | None:
+    """``package.Name[.attr]`` -> ``module.Name[.attr]`` of the object's definition."""
+    package, _, rest = target.partition(".")
+    if package not in PACKAGES or not rest:
+        return None
+    head, _, tail = rest.partition(".")
+    try:
+        obj = getattr(importlib.import_module(package), head)
+    except (ImportError, AttributeError):
+        return None
+    module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+    if isinstance(module, str) and isinstance(qualname, str) and module != package:
+        return f"{module}.{qualname}" + (f".{tail}" if tail else "")
+    # Data (a dict, a number) has no __module__: find the submodule that exports it.
+    for name, submodule in sorted(sys.modules.items()):
+        if (name.startswith(f"{package}.") and submodule is not None
+                and head in getattr(submodule, "__all__", ())
+                and getattr(submodule, head, None) is obj):
+            return f"{name}.{rest}"
+    return None
+
+
+def _missing_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:
+    if node.get("refdomain") != "py":
+        return None
+    target = _defining_name(node.get("reftarget", ""))
+    if target is None:
+        return None
+    domain = env.get_domain("py")
+    return domain.resolve_xref(env, node.get("refdoc"), app.builder, node["reftype"], target,
+                               node, contnode)
+
+
+def setup(app: Any) -> dict[str, Any]:
+    """Register the ``missing-reference`` handler."""
+    app.connect("missing-reference", _missing_reference)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}

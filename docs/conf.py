@@ -1,0 +1,95 @@
+"""Sphinx configuration of the teleopkit documentation.
+
+Build (warnings are errors; the tutorials in ``examples/`` are executed by sphinx-gallery)::
+
+    TELEOPKIT_DOCS_BUDGET=small python -m sphinx -W --keep-going -b html docs docs/_build/html
+
+``TELEOPKIT_DOCS_BUDGET`` is ``small`` (CI: short runs, a few methods) or ``full`` (the default of
+the scripts when run by hand).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # document the working tree even without an editable install
+sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import teleopkit  # noqa: E402
+
+project = "teleopkit"
+author = "teleopkit developers"
+copyright = "teleopkit developers"
+release = teleopkit.__version__
+version = ".".join(release.split(".")[:2])
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.viewcode",
+    "numpydoc",
+    "sphinx_gallery.gen_gallery",
+    "sphinx_click",
+    "reexports",  # docs/_ext: references to teleopkit.X / certify.X re-exports
+]
+# No intersphinx: the build machines have no internet access.
+
+templates_path: list[str] = []
+exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py",
+                    "auto_examples/*.zip", "auto_examples/*.json", "auto_examples/*.md5",
+                    "**.codeobj.json"]
+source_suffix = {".rst": "restructuredtext"}
+root_doc = "index"
+pygments_style = "sphinx"
+
+# -- autodoc / numpydoc -------------------------------------------------------------------------
+autodoc_default_options = {"member-order": "bysource"}
+autodoc_typehints = "none"  # the numpydoc sections carry the types
+autodoc_inherit_docstrings = True
+autodoc_mock_imports: list[str] = []
+numpydoc_show_class_members = False  # autodoc's :members: lists them once
+numpydoc_class_members_toctree = False
+numpydoc_attributes_as_param_list = True
+numpydoc_xref_param_type = False
+numpydoc_validation_checks: set[str] = set()
+
+# -- sphinx-gallery -----------------------------------------------------------------------------
+BUDGET = os.environ.get("TELEOPKIT_DOCS_BUDGET", "small")
+if BUDGET not in ("small", "full"):
+    raise ValueError(f"TELEOPKIT_DOCS_BUDGET must be 'small' or 'full', got {BUDGET!r}")
+os.environ["TELEOPKIT_DOCS_BUDGET"] = BUDGET
+
+sphinx_gallery_conf = {
+    "examples_dirs": str(ROOT / "examples"),
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"/plot_",
+    "ignore_pattern": r"train_pretrained\.py",  # a training script, not a tutorial
+    "within_subsection_order": "tutorial_order.TutorialOrder",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "reset_modules": ("matplotlib",),
+    "abort_on_example_error": True,
+    "show_memory": False,
+    "min_reported_time": 1.0,
+    "capture_repr": ("_repr_html_", "__repr__"),
+    "ignore_repr_types": r"matplotlib\.",  # no "<matplotlib.legend.Legend ...>" outputs
+    "image_scrapers": ("matplotlib",),
+    "write_computation_times": False,
+}
+
+# -- HTML ---------------------------------------------------------------------------------------
+html_theme = "pydata_sphinx_theme"
+html_title = f"teleopkit {release}"
+html_static_path = ["_static"]
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "secondary_sidebar_items": ["page-toc"],
+}
+html_show_sourcelink = False
