@@ -27,7 +27,14 @@ from teleopkit.safety import SafetyLayer
 from teleopkit.scenarios import Scenario, paper_scenarios
 from teleopkit.simulator import Simulator
 
-__all__ = ["FIXED_GAINS", "StaticGains", "best_static_gains", "fixed_gains", "static_cost"]
+__all__ = [
+    "BASELINE_SEED",
+    "FIXED_GAINS",
+    "StaticGains",
+    "best_static_gains",
+    "fixed_gains",
+    "static_cost",
+]
 
 FIXED_GAINS = (10.0, 30.0)
 """The paper's fixed remote gains ``(K_r, B_r)`` on every joint."""

@@ -30,6 +30,7 @@ from teleopkit.metrics import error_metrics
 
 __all__ = [
     "EVAL_SEED",
+    "SUMMARY_METRICS",
     "ConstantGains",
     "Controller",
     "Rollout",
