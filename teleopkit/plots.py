@@ -60,7 +60,17 @@ def plot_run(table: pd.DataFrame, title: str = "") -> Figure:
 
 
 def save_run_figure(table: pd.DataFrame, path: str | Path, title: str = "") -> None:
-    """Draw :func:`plot_run` into an image file (format from the suffix, e.g. ``.png``)."""
+    """Draw :func:`plot_run` into an image file (format from the suffix, e.g. ``.png``).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        A run as returned by :func:`teleopkit.simulate`.
+    path : str or Path
+        Image file to write.
+    title : str
+        Figure title.
+    """
     fig = plot_run(table, title)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -65,9 +65,6 @@ KNOWN_GAPS: frozenset[str] = frozenset({
     "teleopkit.agent.TD3Config.exploration_std_at: undocumented parameter 'step'",
     "teleopkit.agent.TorchProjection.forward: undocumented parameter 'action'",
     "teleopkit.evaluation.Rollout.to_frame: undocumented parameter 'scenario'",
-    "teleopkit.plots.save_run_figure: undocumented parameter 'path'",
-    "teleopkit.plots.save_run_figure: undocumented parameter 'table'",
-    "teleopkit.plots.save_run_figure: undocumented parameter 'title'",
     "teleopkit.training.TrainConfig.from_dict: undocumented parameter 'data'",
 })
 
