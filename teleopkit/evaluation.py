@@ -126,6 +126,16 @@ class Rollout:
 
         Columns ``t, theta_i, dtheta_i, ql_delayed_i, e_track_i, e_damp_i, Tl, Tr, Kr_i, Br_i``;
         the delays are NaN at ``t = 0`` and row 0 holds the first period's gains.
+
+        Parameters
+        ----------
+        scenario : int
+            Index of the scenario in the batch.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per control period plus the initial row.
         """
         n = self.obs.shape[-1] // 7
         columns: dict[str, np.ndarray] = {"t": self.t}

@@ -139,7 +139,18 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        data : dict
+            Plain data as written by :meth:`to_dict` (for example read from ``config.json``).
+
+        Returns
+        -------
+        TrainConfig
+            The configuration.
+        """
         td3 = dict(data["td3"])
         for key, value in td3.items():
             if isinstance(value, list):

@@ -64,8 +64,6 @@ KNOWN_GAPS: frozenset[str] = frozenset({
     "teleopkit.agent.TD3.policy: undocumented parameter 'metadata'",
     "teleopkit.agent.TD3Config.exploration_std_at: undocumented parameter 'step'",
     "teleopkit.agent.TorchProjection.forward: undocumented parameter 'action'",
-    "teleopkit.evaluation.Rollout.to_frame: undocumented parameter 'scenario'",
-    "teleopkit.training.TrainConfig.from_dict: undocumented parameter 'data'",
 })
 
 
