@@ -167,7 +167,18 @@ class TD3Config:
             raise ValueError(f"exploration_decay must be in [0, 1), got {self.exploration_decay}")
 
     def exploration_std_at(self, step: int) -> float:
-        """Exploration standard deviation after ``step`` environment steps."""
+        """Exploration standard deviation after ``step`` environment steps.
+
+        Parameters
+        ----------
+        step : int
+            Environment steps taken so far.
+
+        Returns
+        -------
+        float
+            ``max(std_min, std (1 - decay)^step)``.
+        """
         decayed = self.exploration_std * (1.0 - self.exploration_decay) ** step
         return max(self.exploration_std_min, decayed)
 
@@ -245,7 +256,18 @@ class Actor(nn.Module):
                                                      dtype=torch.float32))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        """Raw gains ``low + (high - low) softplus(z) / (2 ln 2)``, shape ``(B, act_dim)``."""
+        """Raw gains ``low + (high - low) softplus(z) / (2 ln 2)``, shape ``(B, act_dim)``.
+
+        Parameters
+        ----------
+        obs : torch.Tensor, shape (B, obs_dim)
+            Observations.
+
+        Returns
+        -------
+        torch.Tensor, shape (B, act_dim)
+            Raw (unprojected) gains.
+        """
         z = self.head(self.body(self.normalise(obs)))
         return self.low + self.span * F.softplus(z)
 
@@ -281,7 +303,20 @@ class Critic(nn.Module):
                                     *_mlp((merged_in, *config.hidden_merged, 1), generator))
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
-        """``Q(obs, action)``, shape ``(B,)``."""
+        """``Q(obs, action)``, shape ``(B,)``.
+
+        Parameters
+        ----------
+        obs : torch.Tensor, shape (B, obs_dim)
+            Observations.
+        action : torch.Tensor, shape (B, act_dim)
+            Gains.
+
+        Returns
+        -------
+        torch.Tensor, shape (B,)
+            Action values.
+        """
         s = self.state_path(self.normalise(obs))
         a = self.action_path((action - self.centre) / self.half_span)
         return self.merged(torch.cat([s, a], dim=-1)).squeeze(-1)
@@ -321,7 +356,18 @@ class TorchProjection(nn.Module):
                            for dtype in (torch.float32, torch.float64)}
 
     def forward(self, action: torch.Tensor) -> torch.Tensor:
-        """Project actions of shape ``(B, 2 n)``; the result has their dtype (float32/64)."""
+        """Project actions onto the certified polytope.
+
+        Parameters
+        ----------
+        action : torch.Tensor, shape (B, 2 n)
+            Raw gains (float32 or float64).
+
+        Returns
+        -------
+        torch.Tensor, shape (B, 2 n)
+            Projected gains, in the dtype of ``action``.
+        """
         start, edge, length2, g_t, h, owner = self._constants[action.dtype]
         n = self.n
         points = torch.stack([action[:, :n], action[:, n:]], dim=-1)  # (B, n, 2)
@@ -336,7 +382,21 @@ class TorchProjection(nn.Module):
 
 
 class Batch(NamedTuple):
-    """A minibatch of transitions as float32 tensors (batch axis first)."""
+    """A minibatch of transitions as float32 tensors (batch axis first).
+
+    Attributes
+    ----------
+    obs : torch.Tensor, shape (B, obs_dim)
+        Observations.
+    action : torch.Tensor, shape (B, act_dim)
+        Applied (projected) gains.
+    reward : torch.Tensor, shape (B,)
+        Rewards.
+    next_obs : torch.Tensor, shape (B, obs_dim)
+        Observations after the step.
+    terminated : torch.Tensor, shape (B,)
+        1 where the episode ended by failure (no bootstrapping), else 0.
+    """
 
     obs: torch.Tensor
     action: torch.Tensor
@@ -379,7 +439,21 @@ class ReplayBuffer:
 
     def add(self, obs: np.ndarray, action: np.ndarray, reward: np.ndarray,
             next_obs: np.ndarray, terminated: np.ndarray) -> None:
-        """Append a batch of ``B`` transitions (arrays with a leading batch axis)."""
+        """Append a batch of ``B`` transitions (overwriting the oldest when full).
+
+        Parameters
+        ----------
+        obs : ndarray, shape (B, obs_dim)
+            Observations.
+        action : ndarray, shape (B, act_dim)
+            Applied gains.
+        reward : ndarray, shape (B,)
+            Rewards.
+        next_obs : ndarray, shape (B, obs_dim)
+            Observations after the step.
+        terminated : ndarray, shape (B,)
+            Whether each episode ended by failure.
+        """
         count = len(reward)
         rows = (self.position + np.arange(count)) % self.capacity
         for name, value in zip(self._FIELDS, (obs, action, reward, next_obs, terminated),
@@ -389,7 +463,18 @@ class ReplayBuffer:
         self.size = min(self.capacity, self.size + count)
 
     def sample(self, batch_size: int) -> Batch:
-        """Draw ``batch_size`` transitions uniformly with replacement."""
+        """Draw transitions uniformly with replacement.
+
+        Parameters
+        ----------
+        batch_size : int
+            Number of transitions.
+
+        Returns
+        -------
+        Batch
+            The minibatch.
+        """
         if self.size == 0:
             raise ValueError("cannot sample from an empty replay buffer")
         rows = self.rng.integers(0, self.size, size=batch_size)
@@ -404,7 +489,13 @@ class ReplayBuffer:
         return data
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore what :meth:`state_dict` returned (capacity and sizes must match)."""
+        """Restore what :meth:`state_dict` returned (capacity and sizes must match).
+
+        Parameters
+        ----------
+        state : dict
+            Output of :meth:`state_dict`.
+        """
         size = int(state["size"])
         if size > self.capacity:
             raise ValueError(f"checkpoint holds {size} transitions, capacity is {self.capacity}")
@@ -476,7 +567,22 @@ class TD3:
 
     @classmethod
     def for_env(cls, env: Any, config: TD3Config | None = None, seed: int = 0) -> TD3:
-        """An agent sized for a :class:`~teleopkit.env.FlexTeleopVectorEnv` (or single env)."""
+        """An agent sized for a :class:`~teleopkit.env.FlexTeleopVectorEnv` (or single env).
+
+        Parameters
+        ----------
+        env : FlexTeleopEnv or FlexTeleopVectorEnv
+            Environment whose spaces and safety layer the agent uses.
+        config : TD3Config, optional
+            Hyperparameters (the defaults when omitted).
+        seed : int
+            Seed of the networks' initialisation, exploration and replay sampling.
+
+        Returns
+        -------
+        TD3
+            The agent.
+        """
         space = getattr(env, "single_action_space", env.action_space)
         observation = getattr(env, "single_observation_space", env.observation_space)
         return cls(observation.shape[0], space.low, space.high, env.safety_layer.polytope,
@@ -600,7 +706,13 @@ class TD3:
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore what :meth:`state_dict` returned."""
+        """Restore what :meth:`state_dict` returned.
+
+        Parameters
+        ----------
+        state : dict
+            Output of :meth:`state_dict`.
+        """
         for name, module in self._networks().items():
             module.load_state_dict(state[name])
         # Optimisers keep the loaded tensors: copy them, or two agents would share moments.
@@ -612,7 +724,18 @@ class TD3:
         self.generator.set_state(state["generator"])
 
     def policy(self, metadata: dict[str, Any] | None = None) -> GainPolicy:
-        """The current actor as a numpy :class:`GainPolicy`."""
+        """The current actor as a numpy :class:`GainPolicy`.
+
+        Parameters
+        ----------
+        metadata : dict, optional
+            JSON-ready data stored with the policy.
+
+        Returns
+        -------
+        GainPolicy
+            The policy.
+        """
         return GainPolicy.from_actor(self.actor, metadata)
 
 
@@ -644,7 +767,20 @@ class GainPolicy:
 
     @classmethod
     def from_actor(cls, actor: Actor, metadata: dict[str, Any] | None = None) -> GainPolicy:
-        """Copy an :class:`Actor`'s weights and maps."""
+        """Copy an :class:`Actor`'s weights and maps.
+
+        Parameters
+        ----------
+        actor : Actor
+            Trained actor.
+        metadata : dict, optional
+            JSON-ready data stored with the policy (for example the training recipe).
+
+        Returns
+        -------
+        GainPolicy
+            The numpy policy.
+        """
         linears = [m for m in actor.modules() if isinstance(m, nn.Linear)]
         weights = [(m.weight.detach().numpy().copy(), m.bias.detach().numpy().copy())
                    for m in linears]
@@ -662,7 +798,13 @@ class GainPolicy:
         return self.low + self.span * np.logaddexp(0.0, x)
 
     def save(self, path: str | Path) -> None:
-        """Write an ``.npz`` file (no pickled objects)."""
+        """Write an ``.npz`` file (no pickled objects).
+
+        Parameters
+        ----------
+        path : str or Path
+            Destination file.
+        """
         arrays: dict[str, Any] = {"obs_mean": self.obs_mean, "obs_std": self.obs_std,
                                          "low": self.low, "span": self.span,
                                          "metadata": np.array(json.dumps(self.metadata))}
@@ -674,6 +816,16 @@ class GainPolicy:
     @classmethod
     def load(cls, path: str | Path) -> GainPolicy:
         """Read a file written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or Path
+            ``.npz`` file.
+
+        Returns
+        -------
+        GainPolicy
+            The policy.
 
         Raises
         ------

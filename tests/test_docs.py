@@ -7,11 +7,6 @@
 * The doctests of both packages pass (what ``python -m pytest --doctest-modules teleopkit
   certify`` runs).
 * Every public module has an ``automodule`` entry in the API reference (``docs/api/*.rst``).
-
-Gaps that exist in modules this test's author may not edit are listed in ``KNOWN_GAPS``: they do
-not fail :func:`test_public_api_is_documented`, which fails only on new gaps, and
-:func:`test_known_gaps_are_closed` (expected to fail) reminds that they are open. Remove entries
-from ``KNOWN_GAPS`` as the docstrings are completed.
 """
 
 from __future__ import annotations
@@ -34,38 +29,6 @@ ROOT = Path(__file__).resolve().parents[1]
 _HEADER = re.compile(r"^(?P<title>[A-Z][A-Za-z ]+)\n-{3,}\s*$", re.MULTILINE)
 _ENTRY = re.compile(r"^(?P<names>\*{0,2}[A-Za-z_][\w]*(?:\s*,\s*\*{0,2}[A-Za-z_][\w]*)*)"
                     r"\s*(?::.*)?$")
-
-# Gaps in modules owned by others at the time this test was written (report, do not fix here).
-# Format: "<qualified name>: <problem>", exactly as :func:`find_gaps` reports them.
-KNOWN_GAPS: frozenset[str] = frozenset({
-    "teleopkit.agent.Actor.forward: undocumented parameter 'obs'",
-    "teleopkit.agent.Batch: undocumented parameter 'action'",
-    "teleopkit.agent.Batch: undocumented parameter 'next_obs'",
-    "teleopkit.agent.Batch: undocumented parameter 'obs'",
-    "teleopkit.agent.Batch: undocumented parameter 'reward'",
-    "teleopkit.agent.Batch: undocumented parameter 'terminated'",
-    "teleopkit.agent.Critic.forward: undocumented parameter 'action'",
-    "teleopkit.agent.Critic.forward: undocumented parameter 'obs'",
-    "teleopkit.agent.GainPolicy.from_actor: undocumented parameter 'actor'",
-    "teleopkit.agent.GainPolicy.from_actor: undocumented parameter 'metadata'",
-    "teleopkit.agent.GainPolicy.load: undocumented parameter 'path'",
-    "teleopkit.agent.GainPolicy.save: undocumented parameter 'path'",
-    "teleopkit.agent.ReplayBuffer.add: undocumented parameter 'action'",
-    "teleopkit.agent.ReplayBuffer.add: undocumented parameter 'next_obs'",
-    "teleopkit.agent.ReplayBuffer.add: undocumented parameter 'obs'",
-    "teleopkit.agent.ReplayBuffer.add: undocumented parameter 'reward'",
-    "teleopkit.agent.ReplayBuffer.add: undocumented parameter 'terminated'",
-    "teleopkit.agent.ReplayBuffer.load_state_dict: undocumented parameter 'state'",
-    "teleopkit.agent.ReplayBuffer.sample: undocumented parameter 'batch_size'",
-    "teleopkit.agent.TD3.for_env: undocumented parameter 'config'",
-    "teleopkit.agent.TD3.for_env: undocumented parameter 'env'",
-    "teleopkit.agent.TD3.for_env: undocumented parameter 'seed'",
-    "teleopkit.agent.TD3.load_state_dict: undocumented parameter 'state'",
-    "teleopkit.agent.TD3.policy: undocumented parameter 'metadata'",
-    "teleopkit.agent.TD3Config.exploration_std_at: undocumented parameter 'step'",
-    "teleopkit.agent.TorchProjection.forward: undocumented parameter 'action'",
-})
-
 
 def public_modules(package: str) -> list[str]:
     """Names of the importable modules of ``package`` whose names do not start with ``_``."""
@@ -220,17 +183,9 @@ def test_documented_names_parser() -> None:
 
 
 def test_public_api_is_documented() -> None:
-    """No docstring gap beyond :data:`KNOWN_GAPS` (a new public name must be documented)."""
-    new = [gap for gap in find_gaps() if gap not in KNOWN_GAPS]
-    assert not new, "undocumented public API:\n" + "\n".join(new)
-
-
-@pytest.mark.xfail(reason="KNOWN_GAPS lists docstring gaps in modules owned by others",
-                   strict=False)
-def test_known_gaps_are_closed() -> None:
-    """Every gap of :data:`KNOWN_GAPS` is fixed (expected to fail until the modules are)."""
-    open_gaps = sorted(KNOWN_GAPS & set(find_gaps()))
-    assert not open_gaps, "still undocumented:\n" + "\n".join(open_gaps)
+    """Every public name and every parameter is documented."""
+    gaps = find_gaps()
+    assert not gaps, "undocumented public API:\n" + "\n".join(gaps)
 
 
 def _doctests() -> list[tuple[str, doctest.DocTest]]:
@@ -244,18 +199,7 @@ def _doctests() -> list[tuple[str, doctest.DocTest]]:
     return sorted(out, key=lambda item: item[0])
 
 
-# Doctests that fail on code this test's author may not edit (reported, fix in the module).
-KNOWN_DOCTEST_FAILURES: frozenset[str] = frozenset()
-
-_DOCTESTS = _doctests()
-
-
-@pytest.mark.parametrize(
-    "test",
-    [pytest.param(t, id=name,
-                  marks=[pytest.mark.xfail(reason="known doctest failure", strict=False)]
-                  if name in KNOWN_DOCTEST_FAILURES else [])
-     for name, t in _DOCTESTS])
+@pytest.mark.parametrize("test", [pytest.param(t, id=name) for name, t in _doctests()])
 def test_doctest(test: doctest.DocTest) -> None:
     """One docstring's examples pass (``ELLIPSIS`` enabled, as pytest's doctest default)."""
     report: list[str] = []
