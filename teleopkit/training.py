@@ -434,8 +434,10 @@ def train(config: TrainConfig, out_dir: str | Path | None = None, resume: bool =
             run.load_state_dict(load_checkpoint(checkpoint))
         config_text = json.dumps(config.to_dict(), indent=2)
         _atomic(directory / "config.json", lambda p: _write_text(p, config_text))
-    with tqdm(total=config.total_steps, initial=min(run.counters.step, config.total_steps),
-              disable=not progress, unit="step", dynamic_ncols=True) as bar:
+    per_round = config.num_envs * run.env.config.max_steps
+    rounded = math.ceil(config.total_steps / per_round) * per_round
+    with tqdm(total=rounded, initial=min(run.counters.step, rounded), disable=not progress,
+              unit="step", dynamic_ncols=True) as bar:
         while run.counters.step < config.total_steps:
             run.run_round(bar.update)
             last = run.counters.step >= config.total_steps
