@@ -21,9 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from certify import PolytopicDelaySystem, certify_delay
 from teleopkit.closed_form import ASSUMPTIONS as NUNO_ASSUMPTIONS
 from teleopkit.closed_form import nuno_delay_margin, nuno_margins, nuno_polytope
 from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.linearize import rest_systems
 from teleopkit.lmi_bridge import LMI_METHOD, lmi_certificate, lmi_delay_margin
 from teleopkit.params import TeleoperatorParams
 
@@ -223,9 +225,8 @@ def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_m
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
     for action in GainPolytope.from_box(box).vertices():
-        point = GainPolytope.from_box(GainBox(tuple(zip(action[:n], action[:n], strict=True)),
-                                              tuple(zip(action[n:], action[n:], strict=True))))
-        if not lmi_certificate(params, point, tl_max, tr_max, kind, method).certified:
+        point = PolytopicDelaySystem(tuple(rest_systems(params, action)), kind)
+        if not certify_delay(point, [tl_max, tr_max], method).certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
                     f"B_r = {action[n:].tolist()} for T_l* = {tl_max:g}, T_r* = {tr_max:g}")
     return (f"LMI ({method}) infeasible for the box as a whole (every vertex is certified "
