@@ -96,6 +96,7 @@ __all__ = [
     "MAX_SCENARIOS",
     "METRIC_COLUMNS",
     "MODEL_FACTORS",
+    "CampaignInterrupted",
     "CampaignSpec",
     "ChunkTask",
     "Factor",
@@ -940,15 +941,23 @@ def _run_synchronous(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay
         done(dask.delayed(simulate_chunk)(task, traces).compute(scheduler="synchronous"))
 
 
+class CampaignInterrupted(RuntimeError):
+    """The cluster lost a chunk for good (its workers kept dying); resume to finish."""
+
+
 def _run_distributed(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay],
                      client: Client, done: Callable[[pd.DataFrame], None]) -> None:
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
 
     shared = client.scatter(dict(traces), broadcast=True) if traces else {}  # sent once
     futures = [client.submit(simulate_chunk, task, shared, pure=False) for task in tasks]
     try:
         for future in as_completed(futures):
             done(future.result())
+    except KilledWorker as error:
+        raise CampaignInterrupted(
+            f"campaign stopped: {error}; the finished chunks are kept, run again with "
+            "resume=True (teleopkit campaign --resume) to finish it") from None
     finally:
         client.cancel(futures)
 
@@ -1076,6 +1085,16 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     ------
     ValueError
         A bad spec, output path or chunk size, or chunk files of another campaign in the way.
+    CampaignInterrupted
+        The cluster gave up on a chunk (see Notes); the finished chunks are kept.
+
+    Notes
+    -----
+    If a Dask worker process dies mid-campaign, Dask reruns the chunks it held on the other (or
+    restarted) workers and the table is unchanged; only a chunk whose workers die more than
+    ``distributed.scheduler.allowed-failures`` times (3 by default) stops the run with
+    :class:`CampaignInterrupted`, and a rerun with ``resume=True`` then runs only the chunks
+    missing from ``<out>.chunks``.
     """
     spec = _load_spec(spec)
     out = _check_output(out)

@@ -306,7 +306,7 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
     """Run a robustness campaign (YAML, JSON or TOML SPEC) on Dask; one row per scenario."""
     import time
 
-    from teleopkit.campaign import CampaignSpec, run_campaign
+    from teleopkit.campaign import CampaignInterrupted, CampaignSpec, run_campaign
 
     client = _campaign_client(workers, scheduler)
     loaded = CampaignSpec.from_file(spec)
@@ -318,7 +318,7 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
     try:
         table = run_campaign(loaded, out, client=client, chunk=chunk, resume=resume,
                              workers=workers, progress=sys.stderr.isatty())
-    except ImportError as error:
+    except (ImportError, CampaignInterrupted) as error:
         raise click.ClickException(str(error)) from None
     diverged = int(table["diverged"].sum())
     click.echo(f"wrote {len(table)} scenarios to {out} in {time.perf_counter() - start:.1f} s; "

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
@@ -203,6 +204,72 @@ def test_a_killed_campaign_process_resumes_without_duplicates(tmp_path):
     assert table["scenario"].tolist() == list(range(30))
     for name, part in before.items():
         pd.testing.assert_frame_equal(pd.read_parquet(chunks / name), part)
+
+
+def _kill_a_busy_worker(client, chunks, running) -> tuple[int, int]:
+    """SIGKILL a worker running a chunk once the first chunk is on disk: (pid, chunks then)."""
+    pids = client.run(os.getpid)
+    deadline = time.monotonic() + 60
+    while not list(chunks.glob("chunk-*.parquet")) and not running.done():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    busy = [address for address, keys in client.processing().items() if keys]
+    assert busy, "the campaign ended before a worker could be killed"
+    victim = pids[busy[0]]
+    os.kill(victim, signal.SIGKILL)
+    return victim, len(list(chunks.glob("chunk-*.parquet")))
+
+
+def _kill_campaign(tmp_path, allowed_failures: int):
+    """Run a 24-chunk campaign on 2 workers and kill one mid-way; return what is needed to check."""
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    trace = tmp_path / "trace.csv"
+    trace.write_text("t,delay\n0,0.2\n0.3,0.6\n")  # scattered to every worker: must survive too
+    spec = {"duration": 4.0, "factors": {"kr": {"linspace": [5, 40, 12]},
+                                         "delay": ["paper", f"csv:{trace}"]}}
+    sync = run_campaign(spec, tmp_path / "sync.parquet", client="synchronous", chunk=1)
+    out = tmp_path / "kill.parquet"
+    chunks = out.with_name(out.name + ".chunks")
+    # One SIGKILL makes each chunk in flight on that worker "suspicious" once; Dask gives up on a
+    # chunk (KilledWorker) after allowed-failures + 1 deaths. The pool is entered first so that,
+    # should the campaign hang, closing the client ends it.
+    with (ThreadPoolExecutor(1) as pool,
+          dask.config.set({"distributed.scheduler.allowed-failures": allowed_failures}),
+          campaign.local_cluster(2) as cluster, distributed.Client(cluster) as client):
+        running = pool.submit(run_campaign, spec, out, client=client, chunk=1)
+        victim, finished_at_kill = _kill_a_busy_worker(client, chunks, running)
+        error = running.exception(timeout=60)
+        table = None if error else running.result()
+        client.wait_for_workers(2, timeout=30)  # the nanny starts a replacement worker
+        assert victim not in client.run(os.getpid).values()
+    assert 1 <= finished_at_kill < len(sync)  # the kill hit a running campaign
+    return spec, sync, out, table, error
+
+
+def _check_complete(table, sync, out):
+    assert table["scenario"].tolist() == list(range(len(sync)))
+    pd.testing.assert_frame_equal(without_timing(table), without_timing(sync))
+    pd.testing.assert_frame_equal(pd.read_parquet(out), table)
+    files = sorted(out.with_name(out.name + ".chunks").glob("chunk-*.parquet"))
+    assert [f.name for f in files] == [f"chunk-{k:06d}.parquet" for k in range(len(sync))]
+    assert pd.concat(map(pd.read_parquet, files))["scenario"].sort_values().tolist() == list(
+        range(len(sync)))
+
+
+def test_a_killed_dask_worker_is_replaced_without_losing_or_duplicating_rows(tmp_path):
+    _, sync, out, table, error = _kill_campaign(tmp_path, allowed_failures=3)
+    assert error is None
+    _check_complete(table, sync, out)
+
+
+def test_a_chunk_dask_gives_up_on_stops_the_campaign_and_resume_finishes_it(tmp_path):
+    spec, sync, out, _, error = _kill_campaign(tmp_path, allowed_failures=0)
+    assert isinstance(error, campaign.CampaignInterrupted)
+    message = str(error)
+    assert "\n" not in message and "resume" in message and "tcp://" in message
+    _check_complete(run_campaign(spec, out, client="synchronous", chunk=1, resume=True), sync, out)
 
 
 def test_resume_refuses_chunks_of_another_spec(tmp_path):
