@@ -10,6 +10,8 @@ ORDER = (
     "plot_methods_vs_spectrum.py",
     "plot_delay_trace.py",
     "plot_gymnasium.py",
+    "plot_train_tuner.py",
+    "plot_other_rl_library.py",
 )
 """Tutorials in reading order; any other tutorial follows them, sorted by file name."""
 
