@@ -5,7 +5,8 @@ Generic, robot-free mathematics of ``E x' = A0 x + sum_i A_i x(t - tau_i(t))``:
 * delay-dependent LMI certificates (Lyapunov–Krasovskii with Jensen, reciprocally convex
   and Wirtinger bounds, and a scaled small-gain test) for constant, slowly varying or
   fast-varying delays, for single systems and for polytopes of systems (parameter switching
-  arbitrarily fast, or frozen), as re-checkable, JSON-serialisable certificates;
+  arbitrarily fast, or frozen), with affine parameters handled by full-block multipliers
+  instead of vertex enumeration, as re-checkable, JSON-serialisable certificates;
 * exact constant-delay spectra (rightmost characteristic roots) and delay margins.
 """
 
@@ -14,10 +15,13 @@ from certify.certificate import Certificate
 from certify.methods import METHODS
 from certify.spectrum import exact_constant_margin, rightmost_roots, spectral_abscissa
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.uncertainty import AffineUncertainty, Direction
 
 __all__ = [
     "METHODS",
+    "AffineUncertainty",
     "Certificate",
+    "Direction",
     "LinearDelaySystem",
     "PolytopicDelaySystem",
     "certify_delay",

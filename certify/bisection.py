@@ -85,7 +85,7 @@ def _initial_guess(system: PolytopicDelaySystem) -> float:
     """A delay of the order of the system's fastest time constant."""
     norms = [
         np.linalg.norm(np.hstack([a0, *mats]), 2)
-        for a0, mats in (v.explicit() for v in system.vertices)
+        for a0, mats in (v.explicit() for v in system.corners())
     ]
     return 1.0 / max(1e-12, float(max(norms)))
 

@@ -20,7 +20,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-__all__ = ["BlockMatrix", "Form", "MatrixInequality", "is_symbolic"]
+__all__ = ["BlockMatrix", "Form", "MatrixInequality", "form_matrix", "is_symbolic"]
 
 Form = Mapping[str, Any]
 
@@ -53,6 +53,30 @@ def _left(coef: Any, mat: Any) -> Any:
 def _right(mat: Any, coef: Any) -> Any:
     """Return ``mat @ coef`` (``mat * coef`` for a scalar)."""
     return mat * coef if _is_scalar(coef) else mat @ coef
+
+
+def form_matrix(form: Form, sizes: Mapping[str, int], rows: int) -> np.ndarray:
+    """The numeric matrix of a form over the blocks ``sizes`` (absent blocks are zero).
+
+    Parameters
+    ----------
+    form : Form
+        Numeric form; a scalar coefficient stands for that multiple of the identity.
+    sizes : Mapping[str, int]
+        Ordered block names and their dimensions.
+    rows : int
+        Number of rows of the form's image.
+
+    Returns
+    -------
+    numpy.ndarray, shape (rows, sum(sizes))
+        The matrix ``L`` with ``L xi = sum_k coefficient_k xi_k``.
+    """
+    parts = []
+    for name, size in sizes.items():
+        coef = form.get(name, 0.0)
+        parts.append(coef * np.eye(rows, size) if np.ndim(coef) == 0 else np.asarray(coef))
+    return np.hstack(parts)
 
 
 class BlockMatrix:

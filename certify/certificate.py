@@ -14,6 +14,7 @@ from certify.channels import Channels
 from certify.check import RTOL, residuals, variables_valid
 from certify.methods import get_method
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.uncertainty import AffineUncertainty
 
 __all__ = ["Certificate"]
 
@@ -105,6 +106,8 @@ class Certificate:
             "assumptions": list(self.assumptions),
             "system": [v.to_dict() for v in self.system.vertices],
             "variation": self.system.variation,
+            "uncertainty": (None if self.system.uncertainty is None
+                            else self.system.uncertainty.to_dict()),
             "solver": self.solver,
             "status": self.status,
             "matrices": {k: v.tolist() for k, v in self.matrices.items()},
@@ -143,7 +146,10 @@ class Certificate:
             The certificate (not re-verified; call :meth:`verify`).
         """
         vertices = tuple(LinearDelaySystem.from_dict(v) for v in data["system"])
-        system = PolytopicDelaySystem(vertices, str(data.get("variation", "switching")))
+        uncertainty = data.get("uncertainty")
+        system = PolytopicDelaySystem(
+            vertices, str(data.get("variation", "switching")),
+            None if uncertainty is None else AffineUncertainty.from_dict(uncertainty))
         return cls(
             certified=bool(data["certified"]),
             method=str(data["method"]),

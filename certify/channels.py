@@ -1,8 +1,8 @@
 """Delay channels: the part of the state that each delay actually acts on.
 
 Delay ``i`` enters the dynamics only through ``A_i x(t - tau_i)``. With ``C_i`` an
-orthonormal basis of the row space of ``A_i`` over all vertices of a polytope,
-``A_i = B_i C_i`` with ``B_i = A_i C_i^T`` at every vertex (and, by linearity, at every
+orthonormal basis of the row space of ``A_i`` over all corners of a polytope,
+``A_i = B_i C_i`` with ``B_i = A_i C_i^T`` at every corner (and, by linearity, at every
 point of the polytope), so the LMIs only need the delayed signal ``y_i = C_i x`` of
 dimension ``r_i = rank``. For a teleoperator, where only positions are transmitted, this
 shrinks the LMIs several-fold; for full-rank ``A_i``, ``C_i = I`` and nothing changes.
@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.uncertainty import Direction
 
 __all__ = ["Channels"]
 
@@ -56,7 +57,7 @@ class Channels:
         """
         maps = []
         for i in range(system.m):
-            stacked = np.vstack([v.A[i] for v in system.vertices])
+            stacked = np.vstack([v.A[i] for v in system.corners()])
             _, sing, vt = np.linalg.svd(stacked)
             rank = max(1, int(np.sum(sing > _RANK_RTOL * max(sing[0], 1e-300))))
             maps.append(np.eye(system.n) if rank == system.n else vt[:rank].copy())
@@ -88,13 +89,13 @@ class Channels:
         c = self.C[i]
         return 1.0 if c.shape[0] == self.n and np.array_equal(c, np.eye(self.n)) else c
 
-    def input_matrix(self, vertex: LinearDelaySystem, i: int) -> Any:
+    def input_matrix(self, vertex: LinearDelaySystem | Direction, i: int) -> Any:
         """``B_i = A_i C_i^T`` of one vertex (``A_i`` itself when ``C_i = I``).
 
         Parameters
         ----------
-        vertex : LinearDelaySystem
-            A vertex of the system.
+        vertex : LinearDelaySystem or Direction
+            A vertex of the system (or a parameter direction).
         i : int
             Delay index.
 
@@ -126,7 +127,7 @@ class Channels:
                 return False
             if not np.allclose(c @ c.T, np.eye(c.shape[0]), rtol=0.0, atol=_BASIS_TOL):
                 return False
-            for v in system.vertices:
+            for v in system.corners():
                 scale = max(1.0, float(np.abs(v.A[i]).max()))
                 if np.abs(v.A[i] - v.A[i] @ c.T @ c).max() > _BASIS_TOL * scale:
                     return False

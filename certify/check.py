@@ -11,7 +11,7 @@ from certify.channels import Channels
 from certify.conditions import LMIMethod
 from certify.system import PolytopicDelaySystem
 
-__all__ = ["RTOL", "relative_margin", "residuals", "solution_copies", "variables_valid"]
+__all__ = ["RTOL", "relative_margin", "residuals", "variables_valid"]
 
 RTOL = 1e-9
 """Smallest accepted relative eigenvalue margin ``lambda_min(F) / max|lambda(F)|``."""
@@ -52,7 +52,7 @@ def variables_valid(
     method : LMIMethod
         The method whose variables are expected.
     system : PolytopicDelaySystem
-        The system (its vertex count and parameter variation fix the variables).
+        The system (its vertices, parameter variation and uncertainty fix the variables).
     ch : Channels
         Delay channels.
     mu : float or None
@@ -66,7 +66,7 @@ def variables_valid(
         ``True`` when exactly the expected matrices are present, finite, of the right shape,
         and symmetric where required.
     """
-    specs = method.variables(ch, mu, solution_copies(system))
+    specs = method.variables(ch, mu, system)
     if set(matrices) != {spec.name for spec in specs}:
         return False
     for spec in specs:
@@ -76,22 +76,6 @@ def variables_valid(
         if spec.symmetric and not np.array_equal(value, value.T):
             return False
     return True
-
-
-def solution_copies(system: PolytopicDelaySystem) -> int:
-    """Number of copies of the functional's matrices: one per vertex if the parameter is frozen.
-
-    Parameters
-    ----------
-    system : PolytopicDelaySystem
-        The system.
-
-    Returns
-    -------
-    int
-        ``len(system.vertices)`` for a frozen parameter, else 1.
-    """
-    return len(system.vertices) if system.frozen else 1
 
 
 def residuals(

@@ -24,9 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from certify.blocks import BlockMatrix, Form, MatrixInequality
+from certify.blocks import BlockMatrix, Form, MatrixInequality, form_matrix
 from certify.channels import Channels
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.uncertainty import Direction, factor, robust_conditions
 
 __all__ = [
     "DelayPoint",
@@ -226,13 +227,14 @@ class LMIMethod(ABC):
         """
 
     @abstractmethod
-    def dynamics(self, vertex: LinearDelaySystem, ch: Channels) -> Form:
+    def dynamics(self, vertex: LinearDelaySystem | Direction, ch: Channels) -> Form:
         """Form ``Gamma`` with ``Gamma xi = 0`` along solutions of the vertex system.
 
         Parameters
         ----------
-        vertex : LinearDelaySystem
-            One vertex of the system.
+        vertex : LinearDelaySystem or Direction
+            One vertex of the system (or a parameter direction, for the part of the
+            relation that changes with the parameter).
         ch : Channels
             Delay channels.
 
@@ -257,8 +259,10 @@ class LMIMethod(ABC):
             Human-readable assumptions.
         """
 
-    def variables(self, ch: Channels, mu: float | None, copies: int = 1) -> list[VariableSpec]:
-        """All decision matrices: the functional's and one Finsler slack per delay point.
+    def variables(
+        self, ch: Channels, mu: float | None, system: PolytopicDelaySystem
+    ) -> list[VariableSpec]:
+        """All decision matrices: the functional's, the Finsler slacks and the multipliers.
 
         Parameters
         ----------
@@ -266,9 +270,10 @@ class LMIMethod(ABC):
             Delay channels.
         mu : float or None
             Delay-derivative bound.
-        copies : int, optional
-            Number of copies of the functional's matrices (one per vertex for a frozen
-            parameter, named ``"<name>@<vertex>"``; one shared set otherwise).
+        system : PolytopicDelaySystem
+            The system: a frozen parameter gets one copy of the functional's matrices per
+            vertex (named ``"<name>@<vertex>"``), an affine uncertainty one multiplier
+            ``(MQ, MS, MR)`` per derivative condition (named ``"MQ<point>@<vertex>"``).
 
         Returns
         -------
@@ -276,18 +281,55 @@ class LMIMethod(ABC):
             Variable shapes.
         """
         size = sum(self.blocks(ch, mu).values())
-        slacks = [
-            VariableSpec(f"N{j}", (size, ch.n), symmetric=False)
-            for j in range(len(self.delay_points(ch.m, mu)))
-        ]
+        points = range(len(self.delay_points(ch.m, mu)))
+        slacks = [VariableSpec(f"N{j}", (size, ch.n), symmetric=False) for j in points]
         own = self.functional_variables(ch, mu)
+        copies = _copies(system)
         if copies > 1:
             own = [
                 VariableSpec(f"{s.name}@{k}", s.shape, s.symmetric)
                 for k in range(copies)
                 for s in own
             ]
-        return own + slacks
+        factors = self.parameter_factors(system, ch, mu)
+        if factors is None:
+            return own + slacks
+        r = factors[0].shape[1]
+        multipliers = [
+            VariableSpec(f"{name}{j}@{k}", (r, r), name != "MS")
+            for j in points
+            for k in range(len(system.vertices))
+            for name in ("MQ", "MS", "MR")
+        ]
+        return own + slacks + multipliers
+
+    def parameter_factors(
+        self, system: PolytopicDelaySystem, ch: Channels, mu: float | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Rank factors ``(G, H, owner)`` of the system's affine uncertainty in this method.
+
+        Parameters
+        ----------
+        system : PolytopicDelaySystem
+            The system.
+        ch : Channels
+            Delay channels.
+        mu : float or None
+            Delay-derivative bound.
+
+        Returns
+        -------
+        tuple or None
+            :func:`certify.uncertainty.factor` of the descriptor relation of each direction,
+            or ``None`` without an uncertainty (or when no parameter actually varies).
+        """
+        if system.uncertainty is None:
+            return None
+        sizes = self.blocks(ch, mu)
+        relations = [form_matrix(self.dynamics(d, ch), sizes, ch.n)
+                     for d in system.uncertainty.directions]
+        factors = factor(relations, system.uncertainty.radius)
+        return factors if factors[0].shape[1] else None
 
     def conditions(
         self,
@@ -303,6 +345,8 @@ class LMIMethod(ABC):
         The slack is common to all vertices. The functional's matrices are common too for
         a switching parameter, and vertex-wise (the functional is then affine in the
         parameter) for a frozen one; both make every condition affine in the parameter.
+        With an affine uncertainty, each derivative condition is centred on it and
+        enlarged by its multiplier (:func:`certify.uncertainty.robust_conditions`).
 
         Parameters
         ----------
@@ -322,14 +366,16 @@ class LMIMethod(ABC):
         Returns
         -------
         list of MatrixInequality
-            Positivity conditions, then one derivative condition per (delay point, vertex).
+            Positivity conditions, then the derivative conditions per (delay point, vertex),
+            each followed by its multiplier conditions if there is an uncertainty.
         """
         sizes = self.blocks(ch, mu)
         offsets = np.cumsum([0, *sizes.values()])
         unit = 1.0 / dynamics_scale(system)
-        copies = len(system.vertices) if system.frozen and len(system.vertices) > 1 else 1
+        copies = _copies(system)
         names = [s.name for s in self.functional_variables(ch, mu)]
         own = [{x: var[f"{x}@{k}" if copies > 1 else x] for x in names} for k in range(copies)]
+        factors = self.parameter_factors(system, ch, mu)
         out = []
         for k, matrices in enumerate(own):
             for cond in self.positivity(matrices, ch, mu):
@@ -341,17 +387,30 @@ class LMIMethod(ABC):
             tag = "".join("h" if p else "0" for p in point)
             for k, vertex in enumerate(system.vertices):
                 finsler = BlockMatrix(sizes)
-                gamma = self.dynamics(vertex, ch)
+                gamma = self.dynamics(system.nominal(vertex), ch)
                 for b, block in enumerate(sizes):
                     rows = slack[offsets[b] : offsets[b + 1], :]
                     finsler.add_he({block: unit}, rows, gamma)
-                matrix = -(phis[k if copies > 1 else 0] + finsler.assemble())
-                out.append(MatrixInequality(f"derivative[vertex={k},tau={tag}]", matrix))
+                m0 = phis[k if copies > 1 else 0] + finsler.assemble()
+                label = f"derivative[vertex={k},tau={tag}]"
+                if factors is None:
+                    out.append(MatrixInequality(label, -m0))
+                    continue
+                assert system.uncertainty is not None
+                g, v, owner = factors
+                multiplier = [var[f"{name}{j}@{k}"] for name in ("MQ", "MS", "MR")]
+                deltas = system.uncertainty.deviations()[:, owner]
+                out += robust_conditions(label, m0, unit * (slack @ g), v, multiplier, deltas)
         return out
 
 
+def _copies(system: PolytopicDelaySystem) -> int:
+    """Copies of the functional's matrices: one per vertex for a frozen parameter, else 1."""
+    return len(system.vertices) if system.frozen and len(system.vertices) > 1 else 1
+
+
 def dynamics_scale(system: PolytopicDelaySystem) -> float:
-    """Largest entry modulus of ``E``, ``A0`` and ``A_i`` over all vertices (exact in floats).
+    """Largest entry modulus of ``E``, ``A0`` and ``A_i`` over all corners (exact in floats).
 
     The Finsler slack multiplies the dynamics divided by this scale, which keeps the slack
     of the order of the functional's matrices whatever the units of the system.
@@ -366,7 +425,7 @@ def dynamics_scale(system: PolytopicDelaySystem) -> float:
     float
         The scale (at least the smallest normal float).
     """
-    mats = [m for v in system.vertices for m in (v.E_matrix, v.A0, *v.A)]
+    mats = [m for v in system.corners() for m in (v.E_matrix, v.A0, *v.A)]
     return max(float(np.finfo(np.float64).tiny), *(float(np.abs(m).max()) for m in mats))
 
 

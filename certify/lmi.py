@@ -31,6 +31,7 @@ from certify.blocks import BlockMatrix, Form, MatrixInequality
 from certify.channels import Channels
 from certify.conditions import DelayPoint, LMIMethod, VariableSpec, box_vertices
 from certify.system import LinearDelaySystem
+from certify.uncertainty import Direction
 
 __all__ = ["JENSEN", "RECIPROCAL", "WIRTINGER", "LyapunovKrasovskii"]
 
@@ -130,7 +131,7 @@ class LyapunovKrasovskii(LMIMethod):
             self._add_integral_bound(phi, var, ch, i, mu)
         return phi
 
-    def dynamics(self, vertex: LinearDelaySystem, ch: Channels) -> Form:  # noqa: D102
+    def dynamics(self, vertex: LinearDelaySystem | Direction, ch: Channels) -> Form:  # noqa: D102
         form: dict[str, Any] = {"x": vertex.A0, "dx": -vertex.E_matrix}
         form.update({f"d{i}": ch.input_matrix(vertex, i) for i in range(ch.m)})
         return form

@@ -23,6 +23,7 @@ from certify.blocks import BlockMatrix, Form, MatrixInequality
 from certify.channels import Channels
 from certify.conditions import DelayPoint, LMIMethod, VariableSpec
 from certify.system import LinearDelaySystem
+from certify.uncertainty import Direction
 
 __all__ = ["SMALL_GAIN", "ScaledSmallGain"]
 
@@ -67,7 +68,7 @@ class ScaledSmallGain(LMIMethod):
             phi.add_quad({f"w{i}": 1.0}, -var[f"X{i}"])
         return phi
 
-    def dynamics(self, vertex: LinearDelaySystem, ch: Channels) -> Form:  # noqa: D102
+    def dynamics(self, vertex: LinearDelaySystem | Direction, ch: Channels) -> Form:  # noqa: D102
         form: dict[str, Any] = {"x": vertex.A0 + sum(vertex.A), "dx": -vertex.E_matrix}
         form.update({f"w{i}": -ch.input_matrix(vertex, i) for i in range(ch.m)})
         return form

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from certify.certificate import Certificate
 from certify.channels import Channels
-from certify.check import RTOL, residuals, solution_copies
+from certify.check import RTOL, residuals
 from certify.conditions import LMIMethod, check_mu, delay_class_text
 from certify.system import PolytopicDelaySystem
 
@@ -28,16 +28,19 @@ end ``optimal_inaccurate`` although the LMIs are comfortably feasible."""
 def _system_text(system: PolytopicDelaySystem) -> str:
     k = len(system.vertices)
     if k == 1:
-        return "system: linear, E x' = A0 x + sum_i A_i x(t - tau_i)"
-    if system.frozen:
-        return (
-            f"system: every fixed (time-invariant) convex combination of {k} vertices "
-            "(parameter-dependent functional, common slack)"
-        )
-    return (
-        f"system: any convex combination of {k} vertices, possibly varying arbitrarily fast "
-        "(common functional and slack at all vertices)"
-    )
+        text = "system: linear, E x' = A0 x + sum_i A_i x(t - tau_i)"
+    elif system.frozen:
+        text = (f"system: every fixed (time-invariant) convex combination of {k} vertices "
+                "(parameter-dependent functional, common slack)")
+    else:
+        text = (f"system: any convex combination of {k} vertices, possibly varying arbitrarily "
+                "fast (common functional and slack at all vertices)")
+    if system.uncertainty is None:
+        return text
+    unc = system.uncertainty
+    return (f"{text}; plus {unc.p} affine parameters ({', '.join(unc.names)}) anywhere in the "
+            f"hull of {len(unc.points)} points, varying arbitrarily fast (full-block "
+            "S-procedure multipliers, Scherer 2001)")
 
 
 class LMIProblem:
@@ -65,7 +68,7 @@ class LMIProblem:
         self.channels = Channels.of(system)
         self._vars = {
             s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
-            for s in method.variables(self.channels, self.mu, solution_copies(system))
+            for s in method.variables(self.channels, self.mu, system)
         }
         self._h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
         self._h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]

@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from certify.uncertainty import AffineUncertainty
+
 __all__ = ["VARIATIONS", "LinearDelaySystem", "PolytopicDelaySystem", "as_polytope"]
 
 Matrix = NDArray[np.float64]
@@ -110,6 +112,29 @@ class LinearDelaySystem:
         e = self.E
         return _solve(e, self.A0), tuple(_solve(e, a) for a in self.A)
 
+    def shifted(self, uncertainty: AffineUncertainty, theta: ArrayLike) -> LinearDelaySystem:
+        """Move the system along the directions of ``uncertainty`` by ``theta``.
+
+        Parameters
+        ----------
+        uncertainty : AffineUncertainty
+            The parameter directions.
+        theta : array_like, shape (p,)
+            Parameter values.
+
+        Returns
+        -------
+        LinearDelaySystem
+            ``(E, A0, A_i) + sum_k theta_k D_k``.
+        """
+        values = np.asarray(theta, dtype=np.float64)
+        dirs = uncertainty.directions
+        e = self.E_matrix + sum(t * d.E_matrix for t, d in zip(values, dirs, strict=True))
+        a0 = self.A0 + sum(t * d.A0 for t, d in zip(values, dirs, strict=True))
+        delayed = tuple(a + sum(t * d.A[i] for t, d in zip(values, dirs, strict=True))
+                        for i, a in enumerate(self.A))
+        return LinearDelaySystem(a0, delayed, e)
+
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dictionary (nested lists).
 
@@ -157,16 +182,23 @@ class PolytopicDelaySystem:
         way, arbitrarily fast, certified by one common functional. ``"frozen"``: it is
         constant in time (every fixed point of the polytope is certified), which allows a
         parameter-dependent functional (one set of functional matrices per vertex).
+    uncertainty : AffineUncertainty, optional
+        Further parameters ``theta`` entering affinely, ``vertex + sum_k theta_k D_k``
+        (the vertices are the systems at ``theta = 0``), anywhere in the hull of the
+        uncertainty's points and varying arbitrarily fast whatever ``variation`` says. They
+        are certified by multipliers (:mod:`certify.uncertainty`) instead of enumerating
+        their vertices; :meth:`corners` lists the systems this covers.
 
     Raises
     ------
     ValueError
-        If there is no vertex, the vertices differ in ``n`` or in the number of delays, or
-        ``variation`` is unknown.
+        If there is no vertex, the vertices differ in ``n`` or in the number of delays,
+        ``variation`` is unknown, or the uncertainty does not match the vertices.
     """
 
     vertices: tuple[LinearDelaySystem, ...]
     variation: str = "switching"
+    uncertainty: AffineUncertainty | None = None
 
     def __post_init__(self) -> None:
         if self.variation not in VARIATIONS:
@@ -182,6 +214,13 @@ class PolytopicDelaySystem:
                     f"vertex {i} has n={v.n}, m={v.m}; vertex 0 has n={verts[0].n}, m={verts[0].m}"
                 )
         object.__setattr__(self, "vertices", verts)
+        if self.uncertainty is not None:
+            d = self.uncertainty.directions[0]
+            if d.A0.shape != (self.n, self.n) or len(d.A) != self.m:
+                raise ValueError(
+                    f"the uncertainty's directions have n={d.A0.shape[0]}, m={len(d.A)}; "
+                    f"the vertices have n={self.n}, m={self.m}")
+            self.corners()  # every corner must be a valid system (nonsingular E)
 
     @classmethod
     def polytope(
@@ -217,6 +256,36 @@ class PolytopicDelaySystem:
     def m(self) -> int:
         """Number of delay channels."""
         return self.vertices[0].m
+
+    def nominal(self, vertex: LinearDelaySystem) -> LinearDelaySystem:
+        """A vertex at the centre of the uncertainty (the vertex itself without one).
+
+        Parameters
+        ----------
+        vertex : LinearDelaySystem
+            One of :attr:`vertices`.
+
+        Returns
+        -------
+        LinearDelaySystem
+            The system the multiplier conditions are centred on.
+        """
+        if self.uncertainty is None:
+            return vertex
+        return vertex.shifted(self.uncertainty, self.uncertainty.center)
+
+    def corners(self) -> list[LinearDelaySystem]:
+        """Every vertex at every point of the uncertainty (the vertices without one).
+
+        Returns
+        -------
+        list of LinearDelaySystem
+            The systems whose hull the certificate covers, vertex-major.
+        """
+        if self.uncertainty is None:
+            return list(self.vertices)
+        points = self.uncertainty.points
+        return [v.shifted(self.uncertainty, theta) for v in self.vertices for theta in points]
 
     def point(self, weights: Sequence[float]) -> LinearDelaySystem:
         """Return the convex combination of the vertices with the given weights.
