@@ -26,7 +26,8 @@ from teleopkit.closed_form import ASSUMPTIONS as NUNO_ASSUMPTIONS
 from teleopkit.closed_form import nuno_delay_margin, nuno_margins, nuno_polytope
 from teleopkit.gains import GainBox, GainPolytope
 from teleopkit.linearize import rest_systems
-from teleopkit.lmi_bridge import LMI_METHOD, lmi_certificate, lmi_delay_margin
+from teleopkit.lmi_bridge import LMI_METHOD, enumerated, lmi_delay_margin
+from teleopkit.lmi_cover import set_certificate
 from teleopkit.params import TeleoperatorParams
 
 __all__ = [
@@ -221,11 +222,11 @@ def _certify_nuno(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
 
 
 def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                   kind: str, method: str) -> str:
+                   method: str) -> str:
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
-    for action in GainPolytope.from_box(box).vertices():
-        point = PolytopicDelaySystem(tuple(rest_systems(params, action)), kind)
+    for action in GainPolytope.from_box(box).vertices():  # one constant gain, every configuration
+        point = PolytopicDelaySystem(tuple(rest_systems(params, action)), "frozen")
         if not certify_delay(point, [tl_max, tr_max], method).certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
                     f"B_r = {action[n:].tolist()} for T_l* = {tl_max:g}, T_r* = {tr_max:g}")
@@ -247,7 +248,7 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
     def certified(scale: float) -> bool:
         polytope = member(scale)
         return (not polytope.is_empty()
-                and lmi_certificate(params, polytope, tl_max, tr_max, kind, method).certified)
+                and set_certificate(params, polytope, tl_max, tr_max, kind, method).certified)
 
     low, high = 0.0, 1.0
     for _ in range(3):
@@ -267,13 +268,14 @@ def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
                  steps: int = 3) -> GainCertificate:
     kind = "frozen" if variation.kind == "frozen" else "switching"
     whole = GainPolytope.from_box(box)
-    cert = lmi_certificate(params, whole, tl_max, tr_max, kind, method)
-    if cert.certified:
+    verdict = set_certificate(params, whole, tl_max, tr_max, kind, method)
+    cert = verdict.certificates[-1]
+    if verdict.certified:
         polytope, polytope_certified, violation = whole, True, None
     else:
         polytope, polytope_certified = _lmi_polytope(params, box, tl_max, tr_max, kind, method,
                                                      steps)
-        violation = _lmi_violation(params, box, tl_max, tr_max, kind, method)
+        violation = _lmi_violation(params, box, tl_max, tr_max, method)
     margin = lmi_delay_margin(params, whole, kind, method)
     assumptions = (
         "linearisation at rest (any rest configuration), free space, the modelled operator "
@@ -285,9 +287,14 @@ def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
                  "switching (which contains them)"}[variation.kind],
         *cert.assumptions,
     )
+    if kind == "frozen" and not enumerated(params, whole):
+        assumptions += (
+            "constant gains of a large set: covered by cells, each certified for gains switching "
+            "inside it; the delay margin is the whole set's with switching gains (a lower bound)",)
     details = {"lmi_method": method, "solver_status": cert.status,
-               "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices)}
-    return GainCertificate(cert.certified, "lmi", str(variation), (tl_max, tr_max),
+               "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
+               "cells": len(verdict.cells), "solves": verdict.solves}
+    return GainCertificate(verdict.certified, "lmi", str(variation), (tl_max, tr_max),
                            float(margin.margin or 0.0), box, polytope, polytope_certified,
                            assumptions, violation, details)
 

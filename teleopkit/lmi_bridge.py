@@ -1,39 +1,103 @@
 """LMI certificates of remote gain sets, from the teleoperator's linearisation at rest.
 
-A set of remote gains becomes a polytope of linear delay systems: every vertex of the gain
-polytope (a product of one polygon per joint) times every configuration vertex of
-:func:`~teleopkit.linearize.rest_systems`. :mod:`certify` then certifies the whole polytope for
-delays ``0 <= T_l(t) <= T_l*``, ``0 <= T_r(t) <= T_r*`` (derivatives unrestricted):
+A set of remote gains (a product of one polygon per joint) and the configuration vertices of
+:func:`~teleopkit.linearize.rest_systems` become a polytope of linear delay systems, which
+:mod:`certify` certifies for delays ``0 <= T_l(t) <= T_l*``, ``0 <= T_r(t) <= T_r*``
+(derivatives unrestricted). The rest configuration is frozen: one functional per configuration
+vertex, which covers the linearisation at every rest configuration. The gains enter in one of
+two ways:
 
-* frozen gains: every fixed point of the polytope (parameter-dependent functional), which covers
-  each constant gain in the set at each rest configuration;
-* switching gains: one common functional at every vertex, which covers gains (and the
-  configuration) changing arbitrarily fast inside the set. A rate bound is a special case of
-  arbitrary switching, so ``rate:R`` is certified the same way (sound, not rate-specific).
-
-The cost grows quickly with the number of vertices (``4^n`` gain vertices for a box of ``n``
-joints, times ``2^(n (n-1) / 2)`` configurations): one Clarabel solve takes about 0.5 s at 2
-vertices of the paper's 12-state system, 9 s at 8, and more than 10 minutes (2.7 GB) at 32, a
-two-joint box. Polytopes above :data:`MAX_VERTICES` are refused with a clear error instead.
+* enumerated (frozen gains, at most :data:`MAX_VERTICES` gain vertices times configurations):
+  every vertex is a system and the functional depends on the gains too, which covers each
+  constant gain in the set. This is the least conservative certificate for constant gains, but
+  its cost grows with ``4^n`` gain vertices (one Clarabel solve takes about 0.5 s at 2
+  vertices of the paper's 12-state system, 9 s at 8, and more than 10 minutes at 32);
+* as an affine uncertainty (switching gains, and frozen gains above :data:`MAX_VERTICES`):
+  each gain is a rank-one change of the motor equations, handled by full-block multipliers
+  (:mod:`certify.uncertainty`) at the cost of 2 n extra rows per LMI instead of more LMIs.
+  One functional then serves every gain in the set, which covers gains switching
+  arbitrarily fast, and therefore constant ones as well (more conservatively). A rate bound
+  is a special case of arbitrary switching, so ``rate:R`` is certified the same way (sound,
+  not rate-specific).
 """
 
 from __future__ import annotations
 
-from certify import Certificate, PolytopicDelaySystem, certify_delay, max_delay_certificate
+import numpy as np
+
+from certify import (
+    AffineUncertainty,
+    Certificate,
+    Direction,
+    PolytopicDelaySystem,
+    certify_delay,
+    max_delay_certificate,
+)
 from teleopkit.gains import GainPolytope
 from teleopkit.linearize import rest_systems
 from teleopkit.params import TeleoperatorParams
 
-__all__ = ["LMI_METHOD", "MAX_VERTICES", "gain_set_system", "lmi_certificate", "lmi_delay_margin"]
+__all__ = ["LMI_METHOD", "MAX_VERTICES", "enumerated", "gain_names", "gain_set_system",
+           "lmi_certificate", "lmi_delay_margin"]
 
 MAX_VERTICES = 16
-"""Largest polytope (gain vertices times configuration vertices) the bridge hands to the solver."""
+"""Largest enumerated polytope (gain vertices times configuration vertices) for frozen gains;
+larger frozen sets are certified through the affine-uncertainty form."""
 
 LMI_METHOD = "rcc"
 """Default LMI: Lyapunov-Krasovskii with the reciprocally convex bound. On the paper's
 teleoperator at one gain and configuration it certifies 1.42 s where the closed form gives
 1.00 s and the scaled small-gain test 1.09 s; the Wirtinger functional reaches 2.28 s at several
 times the cost."""
+
+
+def gain_names(n_joints: int) -> tuple[str, ...]:
+    """Names of the remote gains in action order, ``K_r1 ... K_rn, B_r1 ... B_rn``.
+
+    Parameters
+    ----------
+    n_joints : int
+        Number of joints.
+
+    Returns
+    -------
+    tuple of str
+        The names.
+    """
+    return (tuple(f"K_r{j + 1}" for j in range(n_joints))
+            + tuple(f"B_r{j + 1}" for j in range(n_joints)))
+
+
+def _gain_uncertainty(params: TeleoperatorParams, actions: np.ndarray) -> AffineUncertainty:
+    """Each remote gain as a direction of the rest systems (which are affine in the gains)."""
+    size = 2 * params.n_joints
+    origin = rest_systems(params, np.zeros(size))[0]
+    directions = []
+    for unit in np.eye(size):
+        moved = rest_systems(params, unit)[0]
+        directions.append(Direction(moved.A0 - origin.A0,
+                                    tuple(a - b for a, b in zip(moved.A, origin.A, strict=True)),
+                                    moved.E_matrix - origin.E_matrix))
+    return AffineUncertainty(tuple(directions), actions, gain_names(params.n_joints))
+
+
+def enumerated(params: TeleoperatorParams, polytope: GainPolytope) -> bool:
+    """Whether frozen gains of ``polytope`` are certified by enumerating its vertices.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    polytope : GainPolytope
+        Remote gains.
+
+    Returns
+    -------
+    bool
+        ``True`` if gain vertices times configurations are at most :data:`MAX_VERTICES`.
+    """
+    configurations = rest_systems(params, np.zeros(polytope.dimension))
+    return len(polytope.vertices()) * len(configurations) <= MAX_VERTICES
 
 
 def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
@@ -47,28 +111,30 @@ def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
     polytope : GainPolytope
         Remote gains (a product of one polygon per joint).
     variation : {"frozen", "switching"}
-        Whether the gains (and the rest configuration) are constant or may switch arbitrarily.
+        Whether the gains are constant or may switch arbitrarily (see the module docstring).
 
     Returns
     -------
     certify.PolytopicDelaySystem
-        Vertices: gain vertices times configuration vertices; delays ordered ``(T_l, T_r)``.
+        Frozen over the configuration vertices; the gains enumerated (frozen gains, small
+        sets) or as an affine uncertainty. Delays ordered ``(T_l, T_r)``.
 
     Raises
     ------
     ValueError
-        If the polytope is empty or has more than :data:`MAX_VERTICES` vertices.
+        If the polytope is empty or ``variation`` is unknown.
     """
+    if variation not in ("frozen", "switching"):
+        raise ValueError(f"variation must be 'frozen' or 'switching', got {variation!r}")
     actions = polytope.vertices()
     if actions.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
-    systems = [system for action in actions for system in rest_systems(params, action)]
-    if len(systems) > MAX_VERTICES:
-        raise ValueError(
-            f"the LMI over {len(systems)} vertices ({len(actions)} gain vertices x "
-            f"{len(systems) // len(actions)} configurations) exceeds {MAX_VERTICES}: one solve "
-            "would take many minutes; fix some joint's gains to a point or use the closed form")
-    return PolytopicDelaySystem(tuple(systems), variation)
+    if variation == "frozen" and enumerated(params, polytope):
+        systems = [system for action in actions for system in rest_systems(params, action)]
+        return PolytopicDelaySystem(tuple(systems), "frozen")
+    configurations = rest_systems(params, np.zeros(actions.shape[1]))
+    return PolytopicDelaySystem(tuple(configurations), "frozen",
+                                _gain_uncertainty(params, actions))
 
 
 def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
@@ -118,7 +184,9 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
     Returns
     -------
     certify.Certificate
-        Certificate at the largest certified bound, stored in ``margin`` (0 if none).
+        Certificate at the largest certified bound, stored in ``margin`` (0 if none). For
+        frozen gains beyond :func:`enumerated` it is the margin of the whole set with gains
+        switching, a lower bound of the frozen one.
     """
     system = gain_set_system(params, polytope, variation)
     return max_delay_certificate(system, method, rtol=rtol, h_max=100.0)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from certify import exact_constant_margin, max_delay
+from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import GainCertificate, certify_gains
 from teleopkit.closed_form import nuno_polytope
 from teleopkit.falsify import falsify
@@ -14,27 +14,9 @@ from teleopkit.gains import GainBox, GainPolytope
 from teleopkit.linearize import rest_systems
 from teleopkit.lmi_bridge import LMI_METHOD, gain_set_system, lmi_certificate, lmi_delay_margin
 from teleopkit.params import (
-    ElasticJoints,
-    InitialState,
-    Operator,
-    PDGains,
-    PlanarArm,
-    TeleoperatorParams,
     paper_setup,
 )
 from teleopkit.safety import SafetyLayer
-
-
-@pytest.fixture(scope="module")
-def one_joint() -> TeleoperatorParams:
-    """The paper's first joint alone (same arm, spring, rotor and gains): cheap LMIs."""
-    arm = PlanarArm((0.38,), (0.5,))
-    return TeleoperatorParams(
-        local_arm=arm, remote_arm=arm, joints=ElasticJoints((100.0,), (0.3,)),
-        local_gains=PDGains((25.0,), (10.0,)), remote_gains=PDGains((10.0,), (30.0,)),
-        operator=Operator(amplitudes=(3.0,), frequencies=(1.0,), phases=(0.0,), decays=(0.05,)),
-        initial=InitialState((-0.2,), (-0.1,), (0.0,)))
-
 
 WIDE = GainBox.uniform((1.0, 50.0), (1.0, 150.0), n_joints=1)
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
@@ -126,10 +108,25 @@ def test_falsification_inside_the_lmi_set_never_diverges(one_joint, wide_frozen)
 
 
 
-def test_two_joint_box_is_refused_before_an_impractical_solve():
+def test_large_gain_sets_are_multiplier_uncertainties_not_enumerated_vertices():
     box = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
-    with pytest.raises(ValueError, match=r"32 vertices .* exceeds 16"):
-        certify_gains(paper_setup(), box, 1.0, 1.0, method="lmi")
-    one_joint_point = GainBox(((1.0, 50.0), (10.0, 10.0)), ((1.0, 150.0), (30.0, 30.0)))
-    system = gain_set_system(paper_setup(), GainPolytope.from_box(one_joint_point), "frozen")
-    assert len(system.vertices) == 8
+    system = gain_set_system(paper_setup(), GainPolytope.from_box(box), "frozen")
+    assert len(system.vertices) == 2 and system.uncertainty is not None  # configurations only
+    assert system.uncertainty.names == ("K_r1", "K_r2", "B_r1", "B_r2")
+    assert len(system.uncertainty.points) == 16
+    for corner, action in zip(system.corners()[:16], system.uncertainty.points, strict=True):
+        expected = rest_systems(paper_setup(), action)[0]
+        np.testing.assert_allclose(corner.A0, expected.A0, atol=1e-12)
+        np.testing.assert_allclose(corner.A[0], expected.A[0], atol=1e-12)
+    one_joint_box = GainBox(((1.0, 50.0), (10.0, 10.0)), ((1.0, 150.0), (30.0, 30.0)))
+    small = gain_set_system(paper_setup(), GainPolytope.from_box(one_joint_box), "frozen")
+    assert len(small.vertices) == 8 and small.uncertainty is None  # enumerated: least conservative
+
+
+def test_switching_gains_are_never_certified_beyond_enumerated_vertices(one_joint):
+    """On one joint the multiplier form is lossless against a common functional at every vertex."""
+    polytope = GainPolytope.from_box(NARROW)
+    multiplier = lmi_delay_margin(one_joint, polytope, "switching")
+    systems = [s for action in polytope.vertices() for s in rest_systems(one_joint, action)]
+    enumerated = max_delay(PolytopicDelaySystem(tuple(systems), "switching"), LMI_METHOD, rtol=0.02)
+    assert multiplier.margin == pytest.approx(enumerated, rel=0.03)

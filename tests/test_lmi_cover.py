@@ -1,0 +1,70 @@
+"""Constant gains of large sets certified by covers of cells."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from teleopkit.closed_form import nuno_polytope
+from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.lmi_bridge import lmi_certificate, lmi_delay_margin
+from teleopkit.lmi_cover import cover_certificate, set_certificate
+from teleopkit.params import paper_setup
+
+NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
+
+
+@pytest.fixture(scope="module")
+def tight_cover(one_joint):
+    """A bound between the switching (1.33 s) and the frozen (1.55 s) margin of NARROW."""
+    return cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45)
+
+
+def test_a_bound_beyond_the_switching_margin_needs_several_cells(one_joint, tight_cover):
+    whole = GainPolytope.from_box(NARROW)
+    assert lmi_delay_margin(one_joint, whole, "switching").margin < 1.45
+    assert tight_cover.certified and len(tight_cover.cells) > 1
+    assert tight_cover.solves >= len(tight_cover.cells) + len(whole.vertices())
+    assert all(cert.certified and cert.verify() for cert in tight_cover.certificates)
+
+
+def test_the_cells_cover_the_set_and_interior_gains_are_certified(one_joint, tight_cover, rng):
+    gains = rng.uniform(NARROW.lower, NARROW.upper, size=(200, 2))
+    covered = np.any([cell.contains(gains, tol=1e-9) for cell in tight_cover.cells], axis=0)
+    assert covered.all()
+    for k, b in gains[:3]:
+        point = GainPolytope.from_box(GainBox(((k, k),), ((b, b),)))
+        assert lmi_certificate(one_joint, point, 1.45, 1.45).certified
+
+
+def test_a_bound_beyond_a_vertex_margin_fails_at_that_vertex(one_joint):
+    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.7, 1.7)
+    assert not cover.certified and "gain vertex" in cover.reason and cover.solves <= 4
+
+
+def test_a_spent_budget_is_not_certified(one_joint):
+    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45, budget=5)
+    assert not cover.certified and "budget of 5 solves" in cover.reason
+
+
+def test_small_sets_and_switching_gains_are_one_lmi(one_joint):
+    whole = GainPolytope.from_box(NARROW)
+    assert set_certificate(one_joint, whole, 1.0, 1.0, "switching").solves == 1
+    assert set_certificate(one_joint, whole, 1.5, 1.5, "frozen").cells == (whole,)
+
+
+def test_bad_input(one_joint):
+    with pytest.raises(ValueError, match="budget"):
+        cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.0, 1.0, budget=0)
+    empty = nuno_polytope(one_joint, GainBox(((40.0, 50.0),), ((1.0, 5.0),)), 1.0, 1.0)
+    with pytest.raises(ValueError, match="empty"):
+        cover_certificate(one_joint, empty, 1.0, 1.0)
+
+
+@pytest.mark.slow
+def test_paper_closed_form_set_is_covered_by_the_lmi():
+    """Two joints: the closed form's set at T* = 1 s, every constant gain LMI-certified."""
+    params = paper_setup()
+    closed = nuno_polytope(params, GainBox.uniform((1.0, 50.0), (1.0, 150.0)), 1.0, 1.0)
+    cover = cover_certificate(params, closed, 1.0, 1.0)
+    assert cover.certified, cover.reason
