@@ -123,7 +123,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         if not cert.certified:
             return Cover(False, (), (cert,), 1, f"the gain vertex {action.tolist()} is not "
                                                   "certified alone")
-    solves, cells, certs = len(corners), [], []
+    solves = len(corners)
+    cells: list[GainPolytope] = []
+    certs: list[Certificate] = []
     queue = deque([(corners.min(axis=0), corners.max(axis=0))])
     while queue:
         cell = _clip(polytope, *queue.popleft())
