@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # the commands import lazily: ``teleopkit --help`` must stay 
     import pandas as pd
 
     from teleopkit.agent import GainPolicy
+    from teleopkit.env import FlexTeleopConfig
     from teleopkit.evaluation import Controller
 
 __all__ = ["cli", "main"]
@@ -136,6 +137,21 @@ def _single_thread() -> None:
     torch.set_num_threads(1)
 
 
+CERTIFICATE_OPTION = click.option(
+    "--certificate", type=click.Path(dir_okay=False, path_type=Path), default=None,
+    help="Gain certificate (JSON of teleopkit certify --json) whose set the safety layer "
+         "projects onto [default: the closed form on K_r in [1, 50], B_r in [1, 150], T* = 1 s].")
+
+
+def _env_config(certificate: Path | None, duration: float) -> FlexTeleopConfig:
+    """Environment settings with the certificate read from ``certificate`` (if given)."""
+    from teleopkit.certification import GainCertificate
+    from teleopkit.env import FlexTeleopConfig
+
+    loaded = None if certificate is None else GainCertificate.from_json(certificate.read_text())
+    return FlexTeleopConfig(certificate=loaded, episode_length=duration)
+
+
 @cli.command("train")
 @click.option("--steps", type=click.IntRange(min=1), default=1_600_000, show_default=True,
               help="Transitions to collect over all environments (rounded up to whole "
@@ -149,7 +165,9 @@ def _single_thread() -> None:
               help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz "
                    "and config.json.")
 @click.option("--resume", is_flag=True, help="Continue the checkpoint in --out.")
-def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool) -> None:
+@CERTIFICATE_OPTION
+def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
+                  certificate: Path | None) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
     The other settings are the defaults of teleopkit.training.TrainConfig: 40 s episodes, the
@@ -160,36 +178,32 @@ def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool) -> 
     _single_thread()
     config = TrainConfig(total_steps=steps, num_envs=envs, seed=seed,
                          learning_starts=max(envs, min(TrainConfig.learning_starts, steps)))
-    result = train(config, out, resume=resume)
+    result = train(config, out, resume=resume, env_config=_env_config(certificate, 40.0))
     row = result.log.iloc[-1]
     click.echo(f"trained {int(row['step'])} steps; best validation cost "
                f"{result.log['validation_cost'].min():.5g}; policies in {out}")
 
 
-def _best_static(policies: Sequence[GainPolicy]) -> np.ndarray:
-    """Best static gains stored with the first policy, or found now (about 30 s)."""
+def _best_static(policies: Sequence[GainPolicy], config: FlexTeleopConfig) -> np.ndarray:
+    """Best static gains stored with the first policy, or found now in the config's set."""
     from teleopkit.baselines import best_static_gains
 
     stored = policies[0].metadata.get("best_static_gains")
-    if stored is not None:
+    if stored is not None and config.certificate is None:
         return np.asarray(stored, dtype=float)
-    click.echo("searching the best static certified gains (no stored result) ...", err=True)
-    return best_static_gains().gains
+    click.echo("searching the best static certified gains (about a minute) ...", err=True)
+    return best_static_gains(config=config).gains
 
 
-def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, duration: float,
+def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: FlexTeleopConfig,
              out: Path) -> pd.DataFrame:
     """Evaluate TD3, fixed and best static gains; write the report; return the summary."""
-    from dataclasses import replace
-
     from teleopkit.baselines import fixed_gains
-    from teleopkit.env import FlexTeleopConfig
     from teleopkit.evaluation import ConstantGains, evaluate, save_report, to_markdown
 
-    config = replace(FlexTeleopConfig(), episode_length=duration)
     controllers: dict[str, Controller | list[Controller]] = {
         "TD3": list(policies), "fixed": ConstantGains(fixed_gains()),
-        "best static": ConstantGains(_best_static(policies))}
+        "best static": ConstantGains(_best_static(policies, config))}
     per_scenario = evaluate(controllers, scenarios, seed, config)
     summary = save_report(per_scenario, out, reference="best static")
     click.echo(to_markdown(summary, reference="best static"), nl=False)
@@ -209,14 +223,15 @@ def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, duration
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path),
               default=Path("runs/evaluate"), show_default=True,
               help="Directory for per_scenario.csv, summary.csv and summary.md.")
+@CERTIFICATE_OPTION
 def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
-                     duration: float, out: Path) -> int:
+                     duration: float, out: Path, certificate: Path | None) -> int:
     """Compare TD3 policies with fixed and best static certified gains on held-out scenarios."""
     from teleopkit.agent import GainPolicy
 
     _single_thread()
     policies = [GainPolicy.load(path) for path in policy_files]
-    summary = _compare(policies, scenarios, seed, duration, out)
+    summary = _compare(policies, scenarios, seed, _env_config(certificate, duration), out)
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")
     return 0 if unsafe == 0 else 1
@@ -236,9 +251,10 @@ def reproduce_command(out: Path, scenarios: int) -> int:
 
     _single_thread()
     policy = GainPolicy.pretrained()
-    summary = _compare([policy], scenarios, EVAL_SEED, 40.0, out)
+    config = _env_config(None, 40.0)
+    summary = _compare([policy], scenarios, EVAL_SEED, config, out)
     runs = {"TD3": rollout(policy, 1, EVAL_SEED).to_frame(),
-            "best static": rollout(ConstantGains(_best_static([policy])), 1,
+            "best static": rollout(ConstantGains(_best_static([policy], config)), 1,
                                    EVAL_SEED).to_frame()}
     paths = save_paper_figures(runs, out)
     unsafe = int(summary["unsafe_actions"].sum())

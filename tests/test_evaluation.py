@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -13,11 +14,16 @@ import torch
 
 from teleopkit.agent import TD3, GainPolicy
 from teleopkit.baselines import FIXED_GAINS, best_static_gains, fixed_gains, static_cost
+from teleopkit.certification import certify_gains
 from teleopkit.cli import main
 from teleopkit.env import FlexTeleopConfig, FlexTeleopVectorEnv, default_certificate
 from teleopkit.evaluation import ConstantGains, evaluate, rollout, save_report
+from teleopkit.gains import GainBox
+from teleopkit.params import paper_setup
 from teleopkit.safety import SafetyLayer
 from teleopkit.scenarios import paper_scenarios
+
+BOX = GainBox.uniform((5.0, 20.0), (30.0, 100.0))
 
 torch.set_num_threads(1)
 
@@ -121,6 +127,17 @@ def teleopkit(*args: str) -> subprocess.CompletedProcess:
                           env={**os.environ, "NUMBA_NUM_THREADS": "1"})
 
 
+def test_evaluate_command_takes_a_certificate_file(policy, tmp_path):
+    path = tmp_path / "policy.npz"
+    policy.save(path)
+    certificate = tmp_path / "certificate.json"
+    certificate.write_text(certify_gains(paper_setup(), BOX, 1.0, 1.0).to_json())
+    done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
+                     "--certificate", str(certificate), "--out", str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    assert "searching the best static" in done.stderr and "unsafe actions: 0" in done.stdout
+
+
 def test_evaluate_command_writes_the_report(policy, tmp_path):
     path = tmp_path / "policy.npz"
     policy.save(path)
@@ -142,14 +159,20 @@ def test_evaluate_command_writes_the_report(policy, tmp_path):
     (["evaluate", "--policy", "POLICY", "--scenarios", "0"], "--scenarios"),
     (["evaluate", "--policy", "POLICY", "--duration", "-1"], "--duration"),
     (["reproduce", "--scenarios", "0"], "--scenarios"),
+    (["evaluate", "--policy", "POLICY", "--certificate", "/no/such/cert.json"], "cert.json"),
+    (["train", "--steps", "10", "--certificate", "NOT_A_POLICY"], "malformed gain certificate"),
+    (["train", "--steps", "10", "--certificate", "UNCERTIFIED"], "refusing to build"),
 ])
 def test_bad_input_exits_2_with_one_line(policy, tmp_path, capsys, args, needle):
     junk = tmp_path / "junk.npz"
     junk.write_text("junk")
     good = tmp_path / "good.npz"
     policy.save(good)
-    args = [str(junk) if a == "NOT_A_POLICY" else str(good) if a == "POLICY" else a
-            for a in args]
+    uncertified = tmp_path / "uncertified.json"
+    data = json.loads(certify_gains(paper_setup(), BOX, 1.0, 1.0).to_json())
+    uncertified.write_text(json.dumps({**data, "polytope_certified": False}))
+    files = {"NOT_A_POLICY": junk, "POLICY": good, "UNCERTIFIED": uncertified}
+    args = [str(files[a]) if a in files else a for a in args]
     assert main([*args, "--out", str(tmp_path / "out")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], lines
