@@ -1,5 +1,6 @@
 """Timing of the certify LMIs: solve time against state dimension and number of vertices,
-and bisection with DPP re-solves against rebuilding the cvxpy problem at every step.
+bisection with DPP re-solves against rebuilding the cvxpy problem at every step, and the
+teleoperator's remote gains as enumerated vertices against full-block multipliers.
 
 Run: ``python benchmarks/bench_certify.py [--quick]``.
 """
@@ -7,6 +8,7 @@ Run: ``python benchmarks/bench_certify.py [--quick]``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
@@ -17,6 +19,10 @@ from certify.bisection import _bisect, _initial_guess
 from certify.methods import get_method
 from certify.solve import LMIProblem
 from certify.system import as_polytope
+from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.linearize import rest_systems
+from teleopkit.lmi_bridge import gain_set_system
+from teleopkit.params import TeleoperatorParams, paper_setup
 
 RANK = 2
 """Rank of each delay matrix (a teleoperator transmits positions only: rank 2 for 2 joints)."""
@@ -105,6 +111,42 @@ def bisection_table(dims: list[int], methods: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def first_joint(params: TeleoperatorParams) -> TeleoperatorParams:
+    """The teleoperator's first joint alone (every per-joint tuple cut to its first entry)."""
+    def cut(part: object) -> object:
+        return dataclasses.replace(part, **{k: v[:1] for k, v in vars(part).items()
+                                           if isinstance(v, tuple)})
+    return dataclasses.replace(params, **{f.name: cut(getattr(params, f.name))
+                                          for f in dataclasses.fields(params)
+                                          if dataclasses.is_dataclass(getattr(params, f.name))})
+
+
+def gain_cases(quick: bool) -> list[tuple[str, PolytopicDelaySystem, PolytopicDelaySystem]]:
+    """(case, enumerated gain vertices, multiplier form) with one configuration each."""
+    cases = [("1 joint", first_joint(paper_setup()), GainBox.uniform((5.0, 10.0), (30.0, 60.0), 1))]
+    if not quick:
+        cases.append(("2 joints", paper_setup(), GainBox.uniform((5.0, 10.0), (30.0, 60.0), 2)))
+    out = []
+    for name, params, box in cases:
+        polytope = GainPolytope.from_box(box)
+        multiplier = gain_set_system(params, polytope, "switching")
+        one = PolytopicDelaySystem(multiplier.vertices[:1], "frozen", multiplier.uncertainty)
+        enumerated = PolytopicDelaySystem(
+            tuple(rest_systems(params, action)[0] for action in polytope.vertices()), "switching")
+        out.append((name, enumerated, one))
+    return out
+
+
+def gain_table(quick: bool) -> pd.DataFrame:
+    rows = []
+    for name, enumerated, multiplier in gain_cases(quick):
+        for form, system in (("vertices", enumerated), ("multiplier", multiplier)):
+            timing = time_solve(system, "rcc", 1.0)
+            rows.append({"case": name, "form": form, "LMIs": len(system.vertices), **timing})
+            print("  done:", rows[-1], flush=True)
+    return pd.DataFrame(rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="small sizes only")
@@ -117,6 +159,9 @@ def main() -> None:
     print(solve_table(dims, vertex_counts, ["rcc", "io"]).to_string(index=False))
     print("\nBisection (rtol 1e-3): DPP re-solve vs rebuilding the problem each step")
     print(bisection_table(dims[:3], ["rcc", "io"]).to_string(index=False))
+    print("\nRemote gains switching in K_r in [5, 10], B_r in [30, 60] per joint, one "
+          "configuration, h = 1 s: vertices against multipliers")
+    print(gain_table(args.quick).to_string(index=False))
 
 
 if __name__ == "__main__":
