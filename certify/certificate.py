@@ -49,6 +49,9 @@ class Certificate:
         Relative eigenvalue margin of each condition (positive means satisfied).
     margin : float or None
         Largest delay scale found by :func:`certify.max_delay_certificate`, if any.
+    scaling : tuple of float
+        State scales ``d`` of the coordinates ``x = diag(d) z`` that ``matrices`` and
+        ``channels`` refer to (:meth:`PolytopicDelaySystem.scaled`); empty means ``d = 1``.
     """
 
     certified: bool
@@ -63,6 +66,7 @@ class Certificate:
     channels: tuple[NDArray[np.float64], ...] = ()
     residuals: Mapping[str, float] = field(default_factory=dict)
     margin: float | None = None
+    scaling: tuple[float, ...] = ()
 
     def verify(self, rtol: float = RTOL) -> bool:
         """Re-check every LMI in numpy from the stored matrices and system.
@@ -80,14 +84,18 @@ class Certificate:
         if not self.certified:
             return False
         method = get_method(self.method)
-        ch = Channels(self.system.n, tuple(self.channels))
+        try:
+            system = self.system.scaled(self.scaling) if self.scaling else self.system
+        except ValueError:
+            return False
+        ch = Channels(system.n, tuple(self.channels))
         if (
-            len(self.delay_bounds) != self.system.m
-            or not ch.valid_for(self.system)
-            or not variables_valid(method, self.system, ch, self.mu, self.matrices)
+            len(self.delay_bounds) != system.m
+            or not ch.valid_for(system)
+            or not variables_valid(method, system, ch, self.mu, self.matrices)
         ):
             return False
-        res = residuals(method, self.system, ch, self.matrices, self.delay_bounds, self.mu)
+        res = residuals(method, system, ch, self.matrices, self.delay_bounds, self.mu)
         return all(r >= rtol for r in res.values())
 
     def to_dict(self) -> dict[str, Any]:
@@ -114,6 +122,7 @@ class Certificate:
             "channels": [c.tolist() for c in self.channels],
             "residuals": dict(self.residuals),
             "margin": self.margin,
+            "scaling": list(self.scaling),
         }
 
     def to_json(self, indent: int | None = None) -> str:
@@ -165,6 +174,7 @@ class Certificate:
             ),
             residuals={k: float(v) for k, v in data["residuals"].items()},
             margin=None if data["margin"] is None else float(data["margin"]),
+            scaling=tuple(float(x) for x in data.get("scaling", ())),
         )
 
     @classmethod

@@ -46,10 +46,12 @@ def _system_text(system: PolytopicDelaySystem) -> str:
 class LMIProblem:
     """The LMIs of one method for one system and delay class, with the bounds as parameters.
 
-    The cvxpy problem is built once; :meth:`solve` only updates the delay-bound
-    parameters, so repeated solves (bisection) reuse the compiled problem. The problem
-    maximises a common margin ``t <= MARGIN_CAP`` with every condition ``F >= t I`` under
-    the scale normalisation ``sum trace(positivity conditions) <= 1``.
+    The LMIs are written for the balanced coordinates of
+    :meth:`~certify.PolytopicDelaySystem.balancing` (badly scaled states otherwise push the
+    margin below the solver's tolerance). The cvxpy problem is built once; :meth:`solve` only
+    updates the delay-bound parameters, so repeated solves (bisection) reuse the compiled
+    problem. The problem maximises a common margin ``t <= MARGIN_CAP`` with every condition
+    ``F >= t I`` under the scale normalisation ``sum trace(positivity conditions) <= 1``.
 
     Parameters
     ----------
@@ -65,14 +67,17 @@ class LMIProblem:
         self.system = system
         self.method = method
         self.mu = check_mu(mu)
-        self.channels = Channels.of(system)
+        self.scaling = system.balancing()
+        self._scaled = system.scaled(self.scaling)
+        self.channels = Channels.of(self._scaled)
         self._vars = {
             s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
-            for s in method.variables(self.channels, self.mu, system)
+            for s in method.variables(self.channels, self.mu, self._scaled)
         }
         self._h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
         self._h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]
-        conds = method.conditions(system, self.channels, self._vars, self._h, self._h2, self.mu)
+        conds = method.conditions(self._scaled, self.channels, self._vars, self._h, self._h2,
+                                  self.mu)
         self._t = cp.Variable(name="t")
         constraints = [c.matrix >> self._t * np.eye(c.matrix.shape[0]) for c in conds]
         scale = cp.hstack([cp.trace(c.matrix) for c in conds if c.normalise])
@@ -83,6 +88,8 @@ class LMIProblem:
             _system_text(system),
             *method.assumptions(self.mu),
             "delay channel i acts through y_i = C_i x (row space of A_i over all vertices)",
+            "numerics: states scaled by powers of two, x = diag(scaling) z; matrices and "
+            "channels refer to z",
             f"numerics: every LMI re-checked in numpy with relative eigenvalue margin >= {RTOL:g}",
         )
 
@@ -115,7 +122,7 @@ class LMIProblem:
         res: dict[str, float] = {}
         if status == cp.OPTIMAL and self._t.value is not None and float(self._t.value) > 0.0:
             matrices = {k: self._value(v) for k, v in self._vars.items()}
-            res = residuals(self.method, self.system, self.channels, matrices, bounds, self.mu)
+            res = residuals(self.method, self._scaled, self.channels, matrices, bounds, self.mu)
         certified = bool(res) and all(r >= RTOL for r in res.values())
         return Certificate(
             certified=certified,
@@ -124,6 +131,7 @@ class LMIProblem:
             mu=self.mu,
             assumptions=self.assumptions,
             system=self.system,
+            scaling=tuple(float(x) for x in self.scaling),
             solver=SOLVER,
             status=status,
             matrices=matrices if certified else {},

@@ -8,8 +8,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import matrix_balance
 
-from certify.uncertainty import AffineUncertainty
+from certify.uncertainty import AffineUncertainty, Direction
 
 __all__ = ["VARIATIONS", "LinearDelaySystem", "PolytopicDelaySystem", "as_polytope"]
 
@@ -273,6 +274,57 @@ class PolytopicDelaySystem:
         if self.uncertainty is None:
             return vertex
         return vertex.shifted(self.uncertainty, self.uncertainty.center)
+
+    def scaled(self, scaling: ArrayLike) -> PolytopicDelaySystem:
+        """The same polytope in the coordinates ``z`` of ``x = diag(scaling) z``.
+
+        Every matrix ``X`` (``E``, ``A0``, ``A_i`` and the uncertainty's directions) becomes
+        ``D^-1 X D``: the rows are scaled like the states, so the polytope's stability and
+        certificates are unchanged, only their numerical conditioning.
+
+        Parameters
+        ----------
+        scaling : array_like, shape (n,)
+            Positive state scales.
+
+        Returns
+        -------
+        PolytopicDelaySystem
+            The scaled polytope (same variation and uncertainty points).
+        """
+        d = np.asarray(scaling, dtype=np.float64)
+        if d.shape != (self.n,) or not np.all(np.isfinite(d)) or np.any(d <= 0):
+            raise ValueError(f"scaling must hold {self.n} positive finite numbers")
+
+        def similar(x: Matrix) -> Matrix:
+            return np.asarray(x * d[None, :] / d[:, None])
+
+        vertices = tuple(LinearDelaySystem(similar(v.A0), tuple(similar(a) for a in v.A),
+                                           similar(v.E_matrix)) for v in self.vertices)
+        unc = self.uncertainty
+        if unc is not None:
+            dirs = tuple(Direction(similar(k.A0), tuple(similar(a) for a in k.A),
+                                   similar(k.E_matrix)) for k in unc.directions)
+            unc = AffineUncertainty(dirs, unc.points, unc.names)
+        return PolytopicDelaySystem(vertices, self.variation, unc)
+
+    def balancing(self) -> Matrix:
+        """Power-of-two state scales that balance the magnitudes of the explicit dynamics.
+
+        ``scipy.linalg.matrix_balance`` of the sum over all corners of ``|E^-1 A0|`` and
+        ``|E^-1 A_i|``. Powers of two keep :meth:`scaled` exact in floating point.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            The scales.
+        """
+        total = np.zeros((self.n, self.n))
+        for corner in self.corners():
+            a0, delayed = corner.explicit()
+            total += np.abs(a0) + sum(np.abs(a) for a in delayed)
+        _, (scale, _) = matrix_balance(total, permute=False, separate=True)
+        return np.asarray(scale, dtype=np.float64)
 
     def corners(self) -> list[LinearDelaySystem]:
         """Every vertex at every point of the uncertainty (the vertices without one).
