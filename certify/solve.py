@@ -43,15 +43,63 @@ def _system_text(system: PolytopicDelaySystem) -> str:
             "S-procedure multipliers, Scherer 2001)")
 
 
+class _Form:
+    """The cvxpy problem of one method in the coordinates ``x = diag(scaling) z``."""
+
+    def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
+                 scaling: NDArray[np.float64]) -> None:
+        self.method, self.mu, self.scaling = method, mu, scaling
+        self.system = system.scaled(scaling)
+        self.channels = Channels.of(self.system)
+        self.vars = {
+            s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
+            for s in method.variables(self.channels, mu, self.system)
+        }
+        self.h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
+        self.h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]
+        conds = method.conditions(self.system, self.channels, self.vars, self.h, self.h2, mu)
+        self.t = cp.Variable(name="t")
+        constraints = [c.matrix >> self.t * np.eye(c.matrix.shape[0]) for c in conds]
+        scale = cp.hstack([cp.trace(c.matrix) for c in conds if c.normalise])
+        constraints += [cp.sum(scale) <= 1, self.t <= MARGIN_CAP]
+        self.problem = cp.Problem(cp.Maximize(self.t), constraints)
+
+    def solve(self, bounds: tuple[float, ...]
+              ) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
+        """Status, decision matrices and numpy residuals (empty unless optimal with ``t > 0``)."""
+        for param, param_sq, value in zip(self.h, self.h2, bounds, strict=True):
+            param.value = value
+            param_sq.value = value * value
+        try:
+            with warnings.catch_warnings():  # an inaccurate status is reported, not warned
+                warnings.simplefilter("ignore", UserWarning)
+                self.problem.solve(solver=SOLVER)
+            status = str(self.problem.status)
+        except cp.SolverError as exc:
+            status = f"solver_error: {exc}"
+        if status != cp.OPTIMAL or self.t.value is None or float(self.t.value) <= 0.0:
+            return status, {}, {}
+        matrices = {k: _value(v) for k, v in self.vars.items()}
+        return status, matrices, residuals(self.method, self.system, self.channels, matrices,
+                                           bounds, self.mu)
+
+
+def _value(var: cp.Variable) -> np.ndarray:
+    value = np.asarray(var.value, dtype=np.float64)
+    return 0.5 * (value + value.T) if var.is_symmetric() else value
+
+
 class LMIProblem:
     """The LMIs of one method for one system and delay class, with the bounds as parameters.
 
-    The LMIs are written for the balanced coordinates of
-    :meth:`~certify.PolytopicDelaySystem.balancing` (badly scaled states otherwise push the
-    margin below the solver's tolerance). The cvxpy problem is built once; :meth:`solve` only
-    updates the delay-bound parameters, so repeated solves (bisection) reuse the compiled
-    problem. The problem maximises a common margin ``t <= MARGIN_CAP`` with every condition
-    ``F >= t I`` under the scale normalisation ``sum trace(positivity conditions) <= 1``.
+    The cvxpy problem is built once; :meth:`solve` only updates the delay-bound parameters, so
+    repeated solves (bisection) reuse the compiled problem. The problem maximises a common
+    margin ``t <= MARGIN_CAP`` with every condition ``F >= t I`` under the scale normalisation
+    ``sum trace(positivity conditions) <= 1``. A bound the LMIs fail in the system's own
+    coordinates is tried again in the balanced coordinates of
+    :meth:`~certify.PolytopicDelaySystem.balancing` (built on first need): badly scaled states
+    can push the margin below the solver's tolerance, though balancing does not help every
+    system.
 
     Parameters
     ----------
@@ -67,31 +115,28 @@ class LMIProblem:
         self.system = system
         self.method = method
         self.mu = check_mu(mu)
-        self.scaling = system.balancing()
-        self._scaled = system.scaled(self.scaling)
-        self.channels = Channels.of(self._scaled)
-        self._vars = {
-            s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
-            for s in method.variables(self.channels, self.mu, self._scaled)
-        }
-        self._h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
-        self._h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]
-        conds = method.conditions(self._scaled, self.channels, self._vars, self._h, self._h2,
-                                  self.mu)
-        self._t = cp.Variable(name="t")
-        constraints = [c.matrix >> self._t * np.eye(c.matrix.shape[0]) for c in conds]
-        scale = cp.hstack([cp.trace(c.matrix) for c in conds if c.normalise])
-        constraints += [cp.sum(scale) <= 1, self._t <= MARGIN_CAP]
-        self.problem = cp.Problem(cp.Maximize(self._t), constraints)
+        self._forms = [_Form(system, method, self.mu, np.ones(system.n))]
         self.assumptions = (
             delay_class_text(self.mu),
             _system_text(system),
             *method.assumptions(self.mu),
             "delay channel i acts through y_i = C_i x (row space of A_i over all vertices)",
-            "numerics: states scaled by powers of two, x = diag(scaling) z; matrices and "
-            "channels refer to z",
             f"numerics: every LMI re-checked in numpy with relative eigenvalue margin >= {RTOL:g}",
         )
+
+    @property
+    def problem(self) -> cp.Problem:
+        """The cvxpy problem in the system's own coordinates."""
+        return self._forms[0].problem
+
+    def _balanced(self) -> _Form | None:
+        """The balanced form (built on first use), or None if balancing changes nothing."""
+        if len(self._forms) == 1:
+            scaling = self.system.balancing()
+            if np.all(scaling == 1.0):
+                return None
+            self._forms.append(_Form(self.system, self.method, self.mu, scaling))
+        return self._forms[1]
 
     def solve(self, h: Sequence[float] | NDArray[np.float64]) -> Certificate:
         """Solve for the delay bounds ``h`` and re-check the result in numpy.
@@ -105,41 +150,32 @@ class LMIProblem:
         -------
         Certificate
             ``certified`` is true only if the solver reports an optimal solution with a
-            positive margin and every condition passes the numpy re-check.
+            positive margin and every condition passes the numpy re-check, in the system's
+            coordinates or else in balanced ones (``scaling``).
         """
         bounds = tuple(float(x) for x in h)
-        for param, param_sq, value in zip(self._h, self._h2, bounds, strict=True):
-            param.value = value
-            param_sq.value = value * value
-        try:
-            with warnings.catch_warnings():  # an inaccurate status is reported, not warned
-                warnings.simplefilter("ignore", UserWarning)
-                self.problem.solve(solver=SOLVER)
-            status = str(self.problem.status)
-        except cp.SolverError as exc:
-            status = f"solver_error: {exc}"
-        matrices: dict[str, np.ndarray] = {}
-        res: dict[str, float] = {}
-        if status == cp.OPTIMAL and self._t.value is not None and float(self._t.value) > 0.0:
-            matrices = {k: self._value(v) for k, v in self._vars.items()}
-            res = residuals(self.method, self._scaled, self.channels, matrices, bounds, self.mu)
+        form = self._forms[0]
+        status, matrices, res = form.solve(bounds)
         certified = bool(res) and all(r >= RTOL for r in res.values())
+        balanced = None if certified else self._balanced()
+        if balanced is not None:
+            outcome = balanced.solve(bounds)
+            if outcome[2] and all(r >= RTOL for r in outcome[2].values()):
+                form, (status, matrices, res), certified = balanced, outcome, True
+        scaled = not np.all(form.scaling == 1.0)
         return Certificate(
             certified=certified,
             method=self.method.name,
             delay_bounds=bounds,
             mu=self.mu,
-            assumptions=self.assumptions,
+            assumptions=self.assumptions + (
+                ("numerics: states scaled by powers of two, x = diag(scaling) z; matrices and "
+                 "channels refer to z",) if scaled else ()),
             system=self.system,
-            scaling=tuple(float(x) for x in self.scaling),
+            scaling=tuple(float(x) for x in form.scaling) if scaled else (),
             solver=SOLVER,
             status=status,
             matrices=matrices if certified else {},
-            channels=self.channels.C,
+            channels=form.channels.C,
             residuals=res,
         )
-
-    @staticmethod
-    def _value(var: cp.Variable) -> np.ndarray:
-        value = np.asarray(var.value, dtype=np.float64)
-        return 0.5 * (value + value.T) if var.is_symmetric() else value
