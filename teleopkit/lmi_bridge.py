@@ -19,6 +19,9 @@ two ways:
   arbitrarily fast, and therefore constant ones as well (more conservatively). A rate bound
   is a special case of arbitrary switching, so ``rate:R`` is certified the same way (sound,
   not rate-specific).
+
+For constant gains of a large set, :func:`teleopkit.lmi_cover.cover_certificate` is less
+conservative than one multiplier certificate: it covers the set with cells certified here.
 """
 
 from __future__ import annotations
