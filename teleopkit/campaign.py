@@ -28,6 +28,13 @@ factor                    default   meaning
                                     one number for every joint, or ``G1,G2``
 ``kr``, ``br``            10, 30    fixed remote gains ``K_r``, ``B_r`` on every joint
 ``seed``                  0         seed of the scenario's random draws
+``controller``            fixed     ``fixed`` (the gains ``kr``, ``br``) or ``policy:PATH``: a
+                                    trained policy (:class:`~teleopkit.agent.GainPolicy` file,
+                                    relative to the spec file) retunes the gains every control
+                                    period through the safety layer of the closed-form
+                                    certificate of the row's teleoperator
+                                    (:func:`~teleopkit.env.default_certificate`); ``kr``, ``br``
+                                    are then unused
 ========================  ========  =============================================================
 
 Each factor is written in the spec as a single value (fixed), a list of levels, ``{linspace: [LO,
@@ -73,7 +80,7 @@ import os
 import time
 import uuid
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -82,12 +89,16 @@ import pandas as pd
 
 from teleopkit.delay_ops import scale_delay, stack_delays
 from teleopkit.delays import DelayProfile, TraceDelay, parse_delay
+from teleopkit.env import default_certificate, observation
 from teleopkit.params import ElasticJoints, PDGains, PlanarArm, TeleoperatorParams, paper_setup
+from teleopkit.safety import SafetyLayer
 from teleopkit.scenarios import Scenario, sample_reference_gains
 from teleopkit.simulator import DEFAULT_DT, Simulator, StepResult
 
 if TYPE_CHECKING:
     from distributed import Client
+
+    from teleopkit.agent import GainPolicy
 
 __all__ = [
     "FACTORS",
@@ -172,6 +183,7 @@ FACTORS: dict[str, FactorInfo] = {
     "kr": FactorInfo("float", 10.0, _non_negative, "finite and >= 0"),
     "br": FactorInfo("float", 30.0, _non_negative, "finite and >= 0"),
     "seed": FactorInfo("int", 0, lambda v: 0 <= v < 2**63, "an integer >= 0"),
+    "controller": FactorInfo("str", "fixed", lambda v: bool(v), "'fixed' or policy:PATH"),
 }
 """The factors a campaign may vary, in the order of the table's columns."""
 
@@ -437,6 +449,8 @@ class CampaignSpec:
             _check_delay(str(delay), self.base_dir)
         for gain in self.factor("reference_gain").levels or ():
             _reference_gains(str(gain), paper_setup().n_joints, None)
+        for controller in self.factor("controller").levels or ():
+            _check_controller(str(controller), self.base_dir)
 
     def _check_mode(self) -> None:
         if self.mode not in ("grid", "random"):
@@ -529,11 +543,14 @@ class CampaignSpec:
                 "factors": {f.name: f.to_data() for f in self.factors}}
 
     def fingerprint(self) -> str:
-        """SHA-256 of the spec and of the contents of its delay trace files."""
+        """SHA-256 of the spec and of the contents of its delay trace and policy files."""
         digest = hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode())
         for name, trace in sorted(self.traces().items()):
             digest.update(name.encode())
             digest.update(np.ascontiguousarray([trace.times, trace.delays]).tobytes())
+        for name in sorted(self.policies()):
+            digest.update(name.encode())
+            digest.update(_trace_path(name, self.base_dir).read_bytes())
         return digest.hexdigest()
 
     @property
@@ -542,6 +559,13 @@ class CampaignSpec:
         if self.mode == "random":
             return self.samples
         return math.prod(self.factor(name).size for name in FACTORS)
+
+    def policies(self) -> dict[str, GainPolicy]:
+        """The trained policies of the ``policy:`` controller levels, read now, keyed by level."""
+        from teleopkit.agent import GainPolicy  # torch: only for campaigns with policies
+
+        return {str(c): GainPolicy.load(_trace_path(str(c), self.base_dir))
+                for c in self.factor("controller").levels if str(c).startswith("policy:")}
 
     def traces(self) -> dict[str, TraceDelay]:
         """The delay traces of the ``csv:`` levels, read now, keyed by the delay spec."""
@@ -635,6 +659,21 @@ def _read_trace(spec: str, base_dir: str) -> TraceDelay:
     return TraceDelay.from_csv(_trace_path(spec, base_dir))
 
 
+def _check_controller(spec: str, base_dir: str) -> None:
+    """Raise a one-line ValueError if ``spec`` is not ``fixed`` or a readable ``policy:PATH``."""
+    if spec == "fixed":
+        return
+    if not (spec.startswith("policy:") and spec[7:]):
+        raise ValueError(f"factor 'controller': values must be 'fixed' or policy:PATH, got "
+                         f"{spec!r}")
+    path = _trace_path(spec, base_dir)
+    if not path.is_file():
+        raise ValueError(f"factor 'controller': no policy file {path}")
+    from teleopkit.agent import GainPolicy
+
+    GainPolicy.load(path)
+
+
 def _check_delay(spec: str, base_dir: str) -> None:
     """Raise a one-line ValueError if ``spec`` is not a delay spec (reads csv traces)."""
     if spec.startswith("csv:") and spec[4:]:
@@ -699,6 +738,8 @@ class ChunkTask:
         The chunk's rows of :meth:`CampaignSpec.expand`.
     duration, dt, control_period, divergence_radius : float
         Episode settings of the spec.
+    policies : mapping of str to GainPolicy
+        The trained policies of the chunk's ``policy:`` controllers, keyed by level.
     """
 
     chunk: int
@@ -707,6 +748,7 @@ class ChunkTask:
     dt: float
     control_period: float
     divergence_radius: float
+    policies: Mapping[str, GainPolicy] = field(default_factory=dict)
 
 
 class _RunningMetrics:
@@ -785,8 +827,14 @@ def _simulate_group(task: ChunkTask, rows: pd.DataFrame,
                                          for row in records), strict=True)
     scenario = Scenario(params, stack_delays(forward), stack_delays(backward),
                         np.array(reference))
-    gains = np.repeat(rows[["kr", "br"]].to_numpy(dtype=float), n, axis=1)
-    metrics = _run(Simulator(scenario, task.dt, task.control_period), gains, task)
+    sim = Simulator(scenario, task.dt, task.control_period)
+    controller = str(records[0]["controller"])
+    if controller == "fixed":
+        gains = np.repeat(rows[["kr", "br"]].to_numpy(dtype=float), n, axis=1)
+        metrics = _run(sim, gains, task)
+    else:
+        layer = SafetyLayer.from_certificate(default_certificate(params), task.control_period)
+        metrics = _run_policy(sim, task.policies[controller], layer, task)
     out = rows.reset_index(drop=True)
     for i in range(n):
         out[f"G_{i + 1}"] = scenario.reference_gains[:, i]
@@ -804,6 +852,23 @@ def _run(sim: Simulator, gains: np.ndarray, task: ChunkTask) -> pd.DataFrame:
     for first in range(0, periods, block):
         count = min(block, periods - first)
         metrics.add(sim.advance(np.broadcast_to(gains, (count, *gains.shape))))
+    return metrics.frame(task.divergence_radius)
+
+
+def _run_policy(sim: Simulator, policy: GainPolicy, layer: SafetyLayer,
+                task: ChunkTask) -> pd.DataFrame:
+    """Simulate ``task.duration`` seconds with the policy choosing projected gains per period."""
+    periods = max(1, round(task.duration / task.control_period))
+    state = sim.state
+    n = state.shape[1] // 8
+    metrics = _RunningMetrics(state)
+    delayed, applied = state[:, :n], None
+    for _ in range(periods):
+        raw = policy(np.nan_to_num(observation(state, delayed, n)))
+        applied = layer.project_batch(raw, applied).action
+        result = sim.advance(applied[None])
+        metrics.add(result)
+        state, delayed = result.state[0], result.delayed[0, :, 0]
     return metrics.frame(task.divergence_radius)
 
 
@@ -832,8 +897,8 @@ def simulate_chunk(task: ChunkTask,
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        parts = [_simulate_group(task, rows, traces or {})
-                 for _, rows in task.rows.groupby(list(MODEL_FACTORS), sort=False)]
+        groups = task.rows.groupby([*MODEL_FACTORS, "controller"], sort=False)
+        parts = [_simulate_group(task, rows, traces or {}) for _, rows in groups]
     finally:
         numba.set_num_threads(threads)
     table = pd.concat(parts, ignore_index=True).sort_values("scenario", ignore_index=True)
@@ -929,8 +994,14 @@ def _atomic_write(path: Path, write: Callable[[Path], Any]) -> None:
 def _tasks(spec: CampaignSpec, scenarios: pd.DataFrame, chunks: Sequence[np.ndarray],
            todo: Iterable[int]) -> list[ChunkTask]:
     indexed = scenarios.set_index("scenario", drop=False)
-    return [ChunkTask(k, indexed.loc[chunks[k]].reset_index(drop=True), spec.duration, spec.dt,
-                      spec.control_period, spec.divergence_radius) for k in todo]
+    policies = spec.policies()
+    tasks = []
+    for k in todo:
+        rows = indexed.loc[chunks[k]].reset_index(drop=True)
+        used = {c: policies[c] for c in rows["controller"].unique() if c in policies}
+        tasks.append(ChunkTask(k, rows, spec.duration, spec.dt, spec.control_period,
+                               spec.divergence_radius, used))
+    return tasks
 
 
 def _run_synchronous(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay],

@@ -50,6 +50,7 @@ __all__ = [
     "FlexTeleopVectorEnv",
     "RewardWeights",
     "default_certificate",
+    "observation",
 ]
 
 ENV_ID = "teleopkit/FlexTeleop-v0"
@@ -195,6 +196,32 @@ def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexT
     return replace(config if config is not None else FlexTeleopConfig(), **overrides)
 
 
+def observation(state: np.ndarray, delayed_ql: np.ndarray, n_joints: int) -> np.ndarray:
+    """The paper's observation of a batch of simulator states (the agent's input).
+
+    Parameters
+    ----------
+    state : ndarray, shape (B, 8 n)
+        Simulator states ``[q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp]``
+        (see :class:`~teleopkit.simulator.Simulator`).
+    delayed_ql : ndarray, shape (B, n)
+        Local positions as received by the remote side, ``q_l(t - T_l(t))``.
+    n_joints : int
+        Number of joints ``n``.
+
+    Returns
+    -------
+    ndarray, shape (B, 7 n)
+        ``[theta, theta', q_l(t - T_l), theta - q_l(t - T_l), int e_track, theta - q_r,
+        int e_damp]``.
+    """
+    n = n_joints
+    theta = state[:, 4 * n:5 * n]
+    return np.concatenate([theta, state[:, 5 * n:6 * n], delayed_ql, theta - delayed_ql,
+                           state[:, 6 * n:7 * n], theta - state[:, 2 * n:3 * n],
+                           state[:, 7 * n:8 * n]], axis=1)
+
+
 class _TeleopBatch:
     """Scenario draws, safety projection, simulation, observation and reward for ``B`` scenarios.
 
@@ -223,11 +250,7 @@ class _TeleopBatch:
         return self._observe(state, state[:, :self.n])
 
     def _observe(self, state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
-        n = self.n
-        theta = state[:, 4 * n:5 * n]
-        return np.concatenate([theta, state[:, 5 * n:6 * n], delayed_ql, theta - delayed_ql,
-                               state[:, 6 * n:7 * n], theta - state[:, 2 * n:3 * n],
-                               state[:, 7 * n:8 * n]], axis=1)
+        return observation(state, delayed_ql, self.n)
 
     def step(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                              dict[str, np.ndarray]]:

@@ -27,7 +27,7 @@ from teleopkit.simulator import Simulator
 
 TINY = {"duration": 0.2, "factors": {"kr": [10, 20, 30]}}
 KNOWN = ("joint_stiffness, rotor_inertia, remote_mass_scale, local_mass_scale, kl, bl, delay, "
-         "delay_scale, reference_gain, kr, br, seed")
+         "delay_scale, reference_gain, kr, br, seed, controller")
 SIM = ["simulate", "--kr", "10", "--br", "30", "--out", "{tmp}/x.csv"]
 CERT = ["certify", "--kr", "1:5", "--br", "30:60"]
 

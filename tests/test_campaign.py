@@ -17,6 +17,7 @@ import pytest
 
 import teleopkit as tk
 import teleopkit.campaign as campaign
+from teleopkit.agent import GainPolicy
 from teleopkit.campaign import FACTORS, METRIC_COLUMNS, CampaignSpec, plan_chunks, run_campaign
 from teleopkit.cli import main
 from teleopkit.delay_ops import PiecewiseDelay, SquareWaveDelay, scale_delay, stack_delays
@@ -272,6 +273,35 @@ def test_a_chunk_dask_gives_up_on_stops_the_campaign_and_resume_finishes_it(tmp_
     _check_complete(run_campaign(spec, out, client="synchronous", chunk=1, resume=True), sync, out)
 
 
+def test_trained_policies_retune_the_gains_deterministically(tmp_path):
+    policy = tmp_path / "policy.npz"
+    GainPolicy.pretrained().save(policy)
+    spec = {"duration": 3.0, "factors": {"controller": ["fixed", f"policy:{policy}"],
+                                         "seed": [0, 1, 2]}}
+    one = run_campaign(spec, tmp_path / "one.parquet", client="synchronous", chunk=1)
+    six = run_campaign(spec, tmp_path / "six.parquet", client="synchronous", chunk=6)
+    pd.testing.assert_frame_equal(without_timing(one).drop(columns="chunk"),
+                                  without_timing(six).drop(columns="chunk"))
+    fixed, tuned = (one[one["controller"] == c].reset_index(drop=True)
+                    for c in ("fixed", f"policy:{policy}"))
+    assert len(fixed) == len(tuned) == 3 and not one["diverged"].any()
+    assert np.all(np.isfinite(tuned[list(METRIC_COLUMNS)].to_numpy(dtype=float)))
+    assert not np.allclose(tuned["rms_track"], fixed["rms_track"])  # the policy acts
+
+
+def test_a_changed_policy_file_is_another_campaign(tmp_path):
+    policy = tmp_path / "policy.npz"
+    GainPolicy.pretrained().save(policy)
+    spec = CampaignSpec.from_dict({"factors": {"controller": [f"policy:{policy}"]}})
+    before = spec.fingerprint()
+    GainPolicy.load(policy).save(policy)  # same weights: same campaign
+    assert spec.fingerprint() == before
+    changed = GainPolicy.load(policy)
+    changed.metadata["note"] = "retrained"
+    changed.save(policy)
+    assert spec.fingerprint() != before
+
+
 def test_resume_refuses_chunks_of_another_spec(tmp_path):
     out = tmp_path / "x.parquet"
     run_campaign(TINY, out, client="synchronous", chunk=8)
@@ -298,6 +328,9 @@ def test_cli_campaign_writes_the_table_and_exits_0(tmp_path, capsys):
     ({"factors": {"kr": {"uniform": [1, 2]}}}, "factor 'kr': uniform draws need mode: random"),
     ({"durations": 3}, "unknown campaign setting 'durations'"),
     ({"factors": {"delay": ["warp:9"]}}, "unknown delay spec 'warp:9'"),
+    ({"factors": {"controller": ["pid"]}}, "values must be 'fixed' or policy:PATH, got 'pid'"),
+    ({"factors": {"controller": ["policy:/no/such/policy.npz"]}}, "no policy file"),
+    ({"factors": {"controller": ["policy:" + __file__]}}, "is not a teleopkit policy file"),
 ])
 def test_bad_specs_raise_one_line_value_errors(data, message, tmp_path):
     with pytest.raises(ValueError, match=re.escape(message)) as error:
