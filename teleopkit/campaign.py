@@ -37,6 +37,9 @@ factor                    default   meaning
                                     are then unused
 ========================  ========  =============================================================
 
+A policy changes the gains every control period, which the closed-form certificate (constant
+gains) does not cover; its projection keeps every applied gain inside the certified set.
+
 Each factor is written in the spec as a single value (fixed), a list of levels, ``{linspace: [LO,
 HI, N]}`` or ``{range: [START, STOP]}`` (levels), or, in ``mode: random`` only, ``{uniform: [LO,
 HI]}`` or ``{loguniform: [LO, HI]}``. A grid crosses all levels (the parameter factors outermost,
