@@ -1056,17 +1056,17 @@ def local_cluster(workers: int | None = None) -> Any:
     Returns
     -------
     distributed.LocalCluster
-        Processes with one thread each, no dashboard, and ``NUMBA_NUM_THREADS=1`` (as well as
-        Dask's one-thread defaults for OpenMP, MKL and OpenBLAS) in their environment.
+        Processes with one thread each and no dashboard (with Dask's one-thread defaults for
+        OpenMP, MKL and OpenBLAS); each task runs numba on one thread
+        (:func:`simulate_chunk`). ``NUMBA_NUM_THREADS`` is deliberately not set through Dask:
+        its nanny would also set it in this process, where numba then refuses to compile once
+        its threads run with another count.
     """
-    import dask
     from distributed import LocalCluster
 
     count = workers if workers is not None else _usable_cores()
-    environ = {**dask.config.get("distributed.nanny.pre-spawn-environ"), "NUMBA_NUM_THREADS": 1}
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-        return LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                            dashboard_address=None)
+    return LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                        dashboard_address=None)
 
 
 def _execute(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay],

@@ -302,6 +302,16 @@ def test_a_changed_policy_file_is_another_campaign(tmp_path):
     assert spec.fingerprint() != before
 
 
+def test_a_local_cluster_leaves_this_processes_numba_settings_alone():
+    """Dask's nanny copies its spawn environment into this process; numba would then refuse
+    to compile once its threads had started with another count."""
+    pytest.importorskip("distributed")
+    before = os.environ.get("NUMBA_NUM_THREADS")
+    with campaign.local_cluster(1):
+        pass
+    assert os.environ.get("NUMBA_NUM_THREADS") == before
+
+
 def test_resume_refuses_chunks_of_another_spec(tmp_path):
     out = tmp_path / "x.parquet"
     run_campaign(TINY, out, client="synchronous", chunk=8)
