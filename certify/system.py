@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import matrix_balance
 
+from certify.arrays import as_float, freeze_finite
 from certify.uncertainty import AffineUncertainty, Direction
 
 __all__ = ["VARIATIONS", "LinearDelaySystem", "PolytopicDelaySystem", "as_polytope"]
@@ -24,18 +25,12 @@ _COND_LIMIT = 1e12
 
 def _frozen_matrix(value: ArrayLike, name: str) -> Matrix:
     """Return ``value`` as a read-only finite square float matrix, or raise ValueError."""
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real numeric matrix ({exc})") from None
+    arr = as_float(value, name, "matrix")
     if arr.ndim == 0:
         arr = arr.reshape(1, 1)
     if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
         raise ValueError(f"{name} must be a non-empty square matrix, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or inf entries")
-    arr.flags.writeable = False
-    return arr
+    return freeze_finite(arr, name)
 
 
 def _solve(e: Matrix, b: Matrix) -> Matrix:

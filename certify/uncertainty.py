@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from certify.arrays import as_float, freeze_finite
 from certify.blocks import BlockMatrix, MatrixInequality
 
 __all__ = ["AffineUncertainty", "Direction", "factor", "robust_conditions"]
@@ -47,16 +48,10 @@ _RANK_RTOL = 1e-12
 
 def _finite_matrix(value: ArrayLike, shape: tuple[int, ...], name: str) -> Matrix:
     """Return ``value`` as a read-only finite float array of ``shape``, or raise ValueError."""
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real numeric array ({exc})") from None
+    arr = as_float(value, name)
     if arr.shape != shape:
         raise ValueError(f"{name} has shape {arr.shape}, expected {shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or inf entries")
-    arr.flags.writeable = False
-    return arr
+    return freeze_finite(arr, name)
 
 
 @dataclass(frozen=True, eq=False)

@@ -41,6 +41,14 @@ def _width(profile: DelayProfile) -> int:
     return int(profile.sample(np.zeros(1)).shape[1])
 
 
+def _checked_bound(values: np.ndarray, bound: float, kind: str) -> float:
+    """The delay bound (``max(values)`` when ``bound`` is NaN); every value must lie below it."""
+    bound = float(values.max()) if math.isnan(bound) else float(bound)
+    if values.min() < 0 or values.max() > bound:
+        raise ValueError(f"{kind} delay values must lie in [0, {bound:g}]")
+    return bound
+
+
 @dataclass(frozen=True)
 class ScaledDelay:
     """A profile multiplied by a constant factor.
@@ -238,9 +246,7 @@ class PiecewiseDelay:
             raise ValueError("piecewise delay times and values must be finite")
         if np.any(np.diff(times, axis=1) < 0):
             raise ValueError("piecewise delay switching times must be non-decreasing")
-        bound = float(values.max()) if math.isnan(self.bound) else float(self.bound)
-        if values.min() < 0 or values.max() > bound:
-            raise ValueError(f"piecewise delay values must lie in [0, {bound:g}]")
+        bound = _checked_bound(values, self.bound, "piecewise")
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "bound", bound)
@@ -301,9 +307,7 @@ class SquareWaveDelay:
         if np.any(arrays[2] <= 0):
             raise ValueError("square-wave delay half period must be positive")
         values = np.concatenate(arrays[:2])
-        bound = float(values.max()) if math.isnan(self.bound) else float(self.bound)
-        if values.min() < 0 or values.max() > bound:
-            raise ValueError(f"square-wave delay values must lie in [0, {bound:g}]")
+        bound = _checked_bound(values, self.bound, "square-wave")
         for name, array in zip(("low", "high", "half_period", "phase"), arrays, strict=True):
             object.__setattr__(self, name, array)
         object.__setattr__(self, "bound", bound)
