@@ -6,7 +6,8 @@ Generic, robot-free mathematics of ``E x' = A0 x + sum_i A_i x(t - tau_i(t))``:
   and Wirtinger bounds, and a scaled small-gain test) for constant, slowly varying or
   fast-varying delays, for single systems and for polytopes of systems (parameter switching
   arbitrarily fast, or frozen), with affine parameters handled by full-block multipliers
-  instead of vertex enumeration, as re-checkable, JSON-serialisable certificates;
+  instead of vertex enumeration (varying arbitrarily fast, at a bounded rate, or constant),
+  as re-checkable, JSON-serialisable certificates;
 * exact constant-delay spectra (rightmost characteristic roots) and delay margins.
 """
 

@@ -20,7 +20,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-__all__ = ["BlockMatrix", "Form", "MatrixInequality", "form_matrix", "is_symbolic"]
+__all__ = ["BlockMatrix", "Form", "MatrixInequality", "bmat", "form_matrix", "is_symbolic"]
 
 Form = Mapping[str, Any]
 
@@ -39,6 +39,24 @@ def is_symbolic(value: Any) -> bool:
         ``True`` for cvxpy expressions.
     """
     return isinstance(value, cp.Expression)
+
+
+def bmat(rows: list[list[Any]]) -> Any:
+    """Assemble a block matrix with ``cvxpy.bmat`` if any block is symbolic, else ``numpy.block``.
+
+    Parameters
+    ----------
+    rows : list of list
+        Blocks, row by row (arrays or cvxpy expressions of compatible shapes).
+
+    Returns
+    -------
+    numpy.ndarray or cvxpy.Expression
+        The assembled matrix.
+    """
+    if any(is_symbolic(b) for row in rows for b in row):
+        return cp.bmat(rows)
+    return np.block(rows)
 
 
 def _is_scalar(coef: Any) -> bool:
@@ -140,10 +158,7 @@ class BlockMatrix:
             The assembled symmetric matrix.
         """
         names = list(self.sizes)
-        rows = [[self._block(r, c) for c in names] for r in names]
-        if any(is_symbolic(b) for row in rows for b in row):
-            return cp.bmat(rows)
-        return np.block(rows)
+        return bmat([[self._block(r, c) for c in names] for r in names])
 
     def _block(self, row: str, col: str) -> Any:
         terms = self._terms.get((row, col))

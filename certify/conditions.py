@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from certify.blocks import BlockMatrix, Form, MatrixInequality, form_matrix
+from certify.blocks import BlockMatrix, Form, MatrixInequality, bmat, form_matrix
 from certify.channels import Channels
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
 from certify.uncertainty import Direction, factor, robust_conditions
@@ -273,7 +273,9 @@ class LMIMethod(ABC):
         system : PolytopicDelaySystem
             The system: a frozen parameter gets one copy of the functional's matrices per
             vertex (named ``"<name>@<vertex>"``), an affine uncertainty one multiplier
-            ``(MQ, MS, MR)`` per derivative condition (named ``"MQ<point>@<vertex>"``).
+            ``(MQ, MS, MR)`` per derivative condition (named ``"MQ<point>@<vertex>"``), and
+            each of its rate-bounded parameters a storage direction ``dP<k>`` per copy (with a
+            rate bound ``Z<k>`` for a positive rate).
 
         Returns
         -------
@@ -283,25 +285,33 @@ class LMIMethod(ABC):
         size = sum(self.blocks(ch, mu).values())
         points = range(len(self.delay_points(ch.m, mu)))
         slacks = [VariableSpec(f"N{j}", (size, ch.n), symmetric=False) for j in points]
-        own = self.functional_variables(ch, mu)
         copies = _copies(system)
+        own = self.functional_variables(ch, mu) + [
+            VariableSpec(name, (ch.n, ch.n), True) for name in _storage_names(system)]
         if copies > 1:
             own = [
                 VariableSpec(f"{s.name}@{k}", s.shape, s.symmetric)
                 for k in range(copies)
                 for s in own
             ]
-        factors = self.parameter_factors(system, ch, mu)
-        if factors is None:
+        width = self._uncertainty_width(system, ch, mu)
+        if width == 0:
             return own + slacks
-        r = factors[0].shape[1]
         multipliers = [
-            VariableSpec(f"{name}{j}@{k}", (r, r), name != "MS")
+            VariableSpec(f"{name}{j}@{k}", (width, width), name != "MS")
             for j in points
             for k in range(len(system.vertices))
             for name in ("MQ", "MS", "MR")
         ]
         return own + slacks + multipliers
+
+    def _uncertainty_width(self, system: PolytopicDelaySystem, ch: Channels,
+                           mu: float | None) -> int:
+        """Size of ``Delta``: the rank of the parameter part plus ``n`` per storage direction."""
+        factors = self.parameter_factors(system, ch, mu)
+        rank = 0 if factors is None else factors[0].shape[1]
+        scheduled = () if system.uncertainty is None else system.uncertainty.scheduled
+        return rank + ch.n * len(scheduled)
 
     def parameter_factors(
         self, system: PolytopicDelaySystem, ch: Channels, mu: float | None
@@ -373,16 +383,22 @@ class LMIMethod(ABC):
         offsets = np.cumsum([0, *sizes.values()])
         unit = 1.0 / dynamics_scale(system)
         copies = _copies(system)
-        names = [s.name for s in self.functional_variables(ch, mu)]
+        names = [s.name for s in self.functional_variables(ch, mu)] + _storage_names(system)
         own = [{x: var[f"{x}@{k}" if copies > 1 else x] for x in names} for k in range(copies)]
-        factors = self.parameter_factors(system, ch, mu)
+        storage = _Storage(system, ch, sizes)
         out = []
         for k, matrices in enumerate(own):
-            for cond in self.positivity(matrices, ch, mu):
+            for cond in storage.positivity(self, matrices, ch, mu):
                 label = f"{cond.name}@{k}" if copies > 1 else cond.name
                 out.append(MatrixInequality(label, cond.matrix, cond.normalise))
+        factors = self.parameter_factors(system, ch, mu)
+        g, v, owner = factors if factors is not None else _no_factors(ch.n, sum(sizes.values()))
         for j, point in enumerate(self.delay_points(ch.m, mu)):
-            phis = [self.derivative(mats, ch, h, h2, point, mu).assemble() for mats in own]
+            phis = []
+            for mats in own:
+                phi = self.derivative(mats, ch, h, h2, point, mu)
+                storage.add_rate_term(phi, mats)
+                phis.append(phi.assemble())
             slack = var[f"N{j}"]
             tag = "".join("h" if p else "0" for p in point)
             for k, vertex in enumerate(system.vertices):
@@ -391,17 +407,96 @@ class LMIMethod(ABC):
                 for b, block in enumerate(sizes):
                     rows = slack[offsets[b] : offsets[b + 1], :]
                     finsler.add_he({block: unit}, rows, gamma)
+                mats = own[k if copies > 1 else 0]
                 m0 = phis[k if copies > 1 else 0] + finsler.assemble()
                 label = f"derivative[vertex={k},tau={tag}]"
-                if factors is None:
+                if v.shape[1] + storage.width == 0:
                     out.append(MatrixInequality(label, -m0))
                     continue
                 assert system.uncertainty is not None
-                g, v, owner = factors
                 multiplier = [var[f"{name}{j}@{k}"] for name in ("MQ", "MS", "MR")]
-                deltas = system.uncertainty.deviations()[:, owner]
-                out += robust_conditions(label, m0, unit * (slack @ g), v, multiplier, deltas)
+                u, right, deltas = storage.extend(unit * (slack @ g), v,
+                                                  system.uncertainty.deviations()[:, owner], mats)
+                out += robust_conditions(label, m0, u, right, multiplier, deltas)
         return out
+
+
+def _no_factors(n: int, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Empty rank factors (no parameter changes the dynamics)."""
+    return np.zeros((n, 0)), np.zeros((size, 0)), np.zeros(0, dtype=int)
+
+
+def _storage_names(system: PolytopicDelaySystem) -> list[str]:
+    """Names of the storage directions ``dP<k>`` and rate bounds ``Z<k>`` of a system."""
+    unc = system.uncertainty
+    if unc is None:
+        return []
+    rates = unc.normalised_rates()
+    return ([f"dP{k}" for k in unc.scheduled]
+            + [f"Z{k}" for k, rate in zip(unc.scheduled, rates, strict=True) if rate > 0])
+
+
+class _Storage:
+    """The storage's dependence on rate-bounded parameters (see :mod:`certify.uncertainty`)."""
+
+    def __init__(self, system: PolytopicDelaySystem, ch: Channels,
+                 sizes: dict[str, int]) -> None:
+        unc = system.uncertainty
+        self.scheduled = () if unc is None else unc.scheduled
+        self.rates = np.zeros(0) if unc is None else unc.normalised_rates()
+        self.deviations = (np.zeros((0, 0)) if unc is None
+                           else unc.deviations()[:, list(self.scheduled)])
+        self.n = ch.n
+        self.size = sum(sizes.values())
+        self.width = ch.n * len(self.scheduled)
+
+    def _directions(self, mats: Mapping[str, Any]) -> list[Any]:
+        return [mats[f"dP{k}"] for k in self.scheduled]
+
+    def positivity(self, method: LMIMethod, mats: Mapping[str, Any], ch: Channels,
+                   mu: float | None) -> list[MatrixInequality]:
+        """The method's positivity with its storage at every parameter point; ``Z_k >= +-dP_k``."""
+        conditions = method.positivity(mats, ch, mu)
+        if not self.scheduled:
+            return conditions
+        out = [c for c in conditions if c.name != "P"]
+        for j, delta in enumerate(self.deviations):
+            change = sum(d * dp for d, dp in zip(delta, self._directions(mats), strict=True))
+            p = mats["P"]
+            pad = p.shape[0] - self.n
+            if pad:
+                change = bmat([[change, np.zeros((self.n, pad))],
+                               [np.zeros((pad, self.n)), np.zeros((pad, pad))]])
+            moved = {**mats, "P": p + change}
+            storage = [c for c in method.positivity(moved, ch, mu) if c.name == "P"]
+            out += [MatrixInequality(f"P@delta={j}", c.matrix, c.normalise) for c in storage]
+        for k, dp, rate in zip(self.scheduled, self._directions(mats), self.rates, strict=True):
+            if rate > 0:
+                z = mats[f"Z{k}"]
+                out += [MatrixInequality(f"Z{k}-dP{k}", z - dp),
+                        MatrixInequality(f"Z{k}+dP{k}", z + dp)]
+        return out
+
+    def add_rate_term(self, phi: BlockMatrix, mats: Mapping[str, Any]) -> None:
+        """Add the bound ``x^T (sum_k rho_k Z_k) x`` of ``x^T P'(t) x`` to ``phi``."""
+        for k, rate in zip(self.scheduled, self.rates, strict=True):
+            if rate > 0:
+                phi.add_quad({"x": 1.0}, rate * mats[f"Z{k}"])
+
+    def extend(self, u: Any, v: np.ndarray, deltas: np.ndarray,
+               mats: Mapping[str, Any]) -> tuple[Any, np.ndarray, np.ndarray]:
+        """Append the storage term ``He(U_P Delta_P V_P^T)`` to the factors of ``Delta``."""
+        if not self.scheduled:
+            return u, v, deltas
+        rest = self.size - self.n
+        q = len(self.scheduled)
+        u_p = bmat([self._directions(mats), [np.zeros((rest, self.n))] * q])
+        v_p = np.zeros((self.size, self.width))
+        for k in range(q):
+            v_p[self.n:2 * self.n, k * self.n:(k + 1) * self.n] = np.eye(self.n)
+        columns = np.repeat(self.deviations, self.n, axis=1)
+        return (bmat([[u, u_p]]) if v.shape[1] else u_p, np.hstack([v, v_p]),
+                np.hstack([deltas, columns]))
 
 
 def _copies(system: PolytopicDelaySystem) -> int:

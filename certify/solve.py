@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 
@@ -38,9 +39,18 @@ def _system_text(system: PolytopicDelaySystem) -> str:
     if system.uncertainty is None:
         return text
     unc = system.uncertainty
-    return (f"{text}; plus {unc.p} affine parameters ({', '.join(unc.names)}) anywhere in the "
-            f"hull of {len(unc.points)} points, varying arbitrarily fast (full-block "
-            "S-procedure multipliers, Scherer 2001)")
+    assert unc.rates is not None
+    speeds = ", ".join(f"{name} {_speed(rate)}" for name, rate in zip(unc.names, unc.rates,
+                                                                      strict=True))
+    return (f"{text}; plus {unc.p} affine parameters anywhere in the hull of {len(unc.points)} "
+            f"points ({speeds}; full-block S-procedure multipliers, Scherer 2001, with a "
+            "storage depending on every rate-bounded parameter)")
+
+
+def _speed(rate: float) -> str:
+    if math.isinf(rate):
+        return "varying arbitrarily fast"
+    return "constant" if rate == 0 else f"with |rate| <= {rate:g}"
 
 
 class _Form:

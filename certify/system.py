@@ -181,9 +181,10 @@ class PolytopicDelaySystem:
     uncertainty : AffineUncertainty, optional
         Further parameters ``theta`` entering affinely, ``vertex + sum_k theta_k D_k``
         (the vertices are the systems at ``theta = 0``), anywhere in the hull of the
-        uncertainty's points and varying arbitrarily fast whatever ``variation`` says. They
-        are certified by multipliers (:mod:`certify.uncertainty`) instead of enumerating
-        their vertices; :meth:`corners` lists the systems this covers.
+        uncertainty's points, varying arbitrarily fast whatever ``variation`` says or as fast
+        as the uncertainty's ``rates`` allow. They are certified by multipliers
+        (:mod:`certify.uncertainty`) instead of enumerating their vertices; :meth:`corners`
+        lists the systems this covers.
 
     Raises
     ------
@@ -300,7 +301,7 @@ class PolytopicDelaySystem:
         if unc is not None:
             dirs = tuple(Direction(similar(k.A0), tuple(similar(a) for a in k.A),
                                    similar(k.E_matrix)) for k in unc.directions)
-            unc = AffineUncertainty(dirs, unc.points, unc.names)
+            unc = AffineUncertainty(dirs, unc.points, unc.names, unc.rates)
         return PolytopicDelaySystem(vertices, self.variation, unc)
 
     def balancing(self) -> Matrix:

@@ -25,10 +25,22 @@ The LMI grows by ``sum_k r_k`` rows instead of being repeated at every parameter
 Because one functional serves every ``theta``, the certificate covers arbitrarily fast
 parameter variation (hence also constant parameters, more conservatively than a
 parameter-dependent functional would).
+
+A parameter may instead have a bounded rate, ``|theta_k'(t)| <= rho_k`` (``rho_k = 0``: a
+constant parameter). The storage term of the functional then depends on it:
+``x^T (P + sum_k delta_k dP_k) x`` over the parameters with finite rates. Its derivative adds
+``2 x^T (sum_k delta_k dP_k) x'``, one more term ``He(U_P Delta_P V_P^T)`` of the same form
+(``U_P = [dP_1 ... dP_q]`` on the rows of ``x``, ``V_P`` the columns of ``x'``,
+``Delta_P = diag(delta_k I_n)``), handled by the same multiplier, and
+``x^T (sum_k delta_k' dP_k) x <= x^T (sum_k (rho_k / r_k) Z_k) x`` with ``Z_k >= +-dP_k``
+(``r_k`` the radius of parameter ``k``). The storage must be positive at every point. This is
+the gain-dependent functional with a rate bound: between one common functional (arbitrary
+switching) and one functional per constant parameter.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -136,16 +148,22 @@ class AffineUncertainty:
         vertices of a box or of a product of polygons).
     names : sequence of str, optional
         Parameter names (for messages); default ``theta0, theta1, ...``.
+    rates : array_like, shape (p,), optional
+        Bound on ``|theta_k'(t)|`` per parameter, in parameter units per unit time: ``inf``
+        (the default) for arbitrarily fast variation, ``0`` for a constant parameter. A finite
+        rate makes the storage depend on the parameter (see the module docstring).
 
     Raises
     ------
     ValueError
-        On no direction, mismatched shapes, non-finite points or names of the wrong length.
+        On no direction, mismatched shapes, non-finite points, names of the wrong length, or
+        negative or NaN rates.
     """
 
     directions: tuple[Direction, ...]
     points: Matrix
     names: tuple[str, ...] = ()
+    rates: Matrix | None = None
 
     def __post_init__(self) -> None:
         dirs = tuple(self.directions)
@@ -163,9 +181,16 @@ class AffineUncertainty:
         names = tuple(self.names) or tuple(f"theta{k}" for k in range(len(dirs)))
         if len(names) != len(dirs):
             raise ValueError(f"{len(names)} names for {len(dirs)} parameters")
+        rates = as_float(np.inf if self.rates is None else self.rates, "rates")
+        rates = np.broadcast_to(rates, (len(dirs),)).copy() if rates.ndim == 0 else rates
+        if rates.shape != (len(dirs),) or np.any(np.isnan(rates)) or np.any(rates < 0):
+            raise ValueError(f"rates must hold {len(dirs)} non-negative numbers (inf for "
+                             f"arbitrary variation), got {rates.tolist()}")
+        rates.flags.writeable = False
         object.__setattr__(self, "directions", dirs)
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "names", names)
+        object.__setattr__(self, "rates", rates)
 
     @property
     def p(self) -> int:
@@ -194,16 +219,36 @@ class AffineUncertainty:
         scale = np.where(radius > 0.0, radius, 1.0)
         return np.asarray((self.points - self.center) / scale)
 
+    @property
+    def scheduled(self) -> tuple[int, ...]:
+        """Parameters the storage depends on: finite rate and a range of positive width."""
+        assert self.rates is not None
+        return tuple(int(k) for k in np.flatnonzero(np.isfinite(self.rates) & (self.radius > 0)))
+
+    def normalised_rates(self) -> Matrix:
+        """Rate bounds of the normalised deviations ``delta_k`` of :attr:`scheduled`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (q,)
+            ``rho_k / r_k`` for each scheduled parameter (``r_k`` its radius).
+        """
+        assert self.rates is not None
+        k = list(self.scheduled)
+        return np.asarray(self.rates[k] / self.radius[k])
+
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dictionary.
 
         Returns
         -------
         dict
-            Keys ``directions``, ``points`` and ``names``.
+            Keys ``directions``, ``points``, ``names`` and ``rates`` (``None`` for ``inf``).
         """
+        assert self.rates is not None
         return {"directions": [d.to_dict() for d in self.directions],
-                "points": self.points.tolist(), "names": list(self.names)}
+                "points": self.points.tolist(), "names": list(self.names),
+                "rates": [None if math.isinf(r) else float(r) for r in self.rates]}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> AffineUncertainty:
@@ -212,15 +257,19 @@ class AffineUncertainty:
         Parameters
         ----------
         data : dict
-            Dictionary with keys ``directions``, ``points`` and optionally ``names``.
+            Dictionary with keys ``directions``, ``points`` and optionally ``names`` and
+            ``rates``.
 
         Returns
         -------
         AffineUncertainty
             The validated uncertainty.
         """
+        rates = data.get("rates")
         return cls(tuple(Direction.from_dict(d) for d in data["directions"]),
-                   np.asarray(data["points"]), tuple(data.get("names", ())))
+                   np.asarray(data["points"]), tuple(data.get("names", ())),
+                   None if rates is None else np.array([math.inf if r is None else r
+                                                        for r in rates], dtype=np.float64))
 
 
 def factor(relations: Sequence[Matrix], radius: Matrix) -> tuple[Matrix, Matrix, Matrix]:
