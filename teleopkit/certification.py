@@ -27,10 +27,11 @@ from teleopkit.closed_form import nuno_delay_margin, nuno_margins, nuno_polytope
 from teleopkit.gains import GainBox, GainPolytope
 from teleopkit.linearize import rest_systems
 from teleopkit.lmi_bridge import LMI_METHOD, enumerated, lmi_delay_margin
-from teleopkit.lmi_cover import set_certificate
+from teleopkit.lmi_cover import cover_margin, limiting_vertex, set_certificate
 from teleopkit.params import TeleoperatorParams
 
 __all__ = [
+    "MARGIN_BUDGET",
     "GainCertificate",
     "GainVariation",
     "best_certificate",
@@ -263,6 +264,11 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
     return member(high), True
 
 
+MARGIN_BUDGET = 120
+"""Most LMI solves per cover when :func:`certify_gains` searches the margin of constant gains of
+a large certified set (two covers at most)."""
+
+
 def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
                  variation: GainVariation, method: str = LMI_METHOD,
                  steps: int = 3) -> GainCertificate:
@@ -276,7 +282,8 @@ def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
         polytope, polytope_certified = _lmi_polytope(params, box, tl_max, tr_max, kind, method,
                                                      steps)
         violation = _lmi_violation(params, box, tl_max, tr_max, method)
-    margin = lmi_delay_margin(params, whole, kind, method)
+    known = min(tl_max, tr_max) if verdict.certified else 0.0
+    margin, margin_details = _lmi_margin(params, whole, kind, method, known)
     assumptions = (
         "linearisation at rest (any rest configuration), free space, the modelled operator "
         "spring and damper, no torque saturation",
@@ -284,19 +291,43 @@ def _certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
         {"frozen": "constant (frozen) remote gains",
          "switching": "remote gains switching arbitrarily fast inside the set",
          "rate": f"remote gains of rate at most {variation.rate:g}/s, certified as arbitrary "
-                 "switching (which contains them)"}[variation.kind],
+                 "switching: the gains are held over each control period, so they jump by up "
+                 "to the rate times the period, and only switching covers jumps"}[variation.kind],
         *cert.assumptions,
     )
     if kind == "frozen" and not enumerated(params, whole):
         assumptions += (
             "constant gains of a large set: covered by cells, each certified for gains switching "
-            "inside it; the delay margin is the whole set's with switching gains (a lower bound)",)
+            "inside it; the delay margin likewise when the set is certified, else the whole "
+            "set's with switching gains (a lower bound); details.margin_limit is an upper limit",)
     details = {"lmi_method": method, "solver_status": cert.status,
                "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
-               "cells": len(verdict.cells), "solves": verdict.solves}
-    return GainCertificate(verdict.certified, "lmi", str(variation), (tl_max, tr_max),
-                           float(margin.margin or 0.0), box, polytope, polytope_certified,
-                           assumptions, violation, details)
+               "cells": len(verdict.cells), "solves": verdict.solves, **margin_details}
+    return GainCertificate(verdict.certified, "lmi", str(variation), (tl_max, tr_max), margin,
+                           box, polytope, polytope_certified, assumptions, violation, details)
+
+
+def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, method: str,
+                known: float) -> tuple[float, dict[str, Any]]:
+    """Delay margin of a gain set and how it was found (cells for constant gains of large sets).
+
+    The whole set's margin with one functional is a lower bound for constant gains beyond
+    :func:`enumerated`, and so is ``known`` (a common bound already certified). The limiting
+    vertex's own margin is an upper limit. A set certified at the requested bounds is searched
+    between the two by covers (:func:`~teleopkit.lmi_cover.cover_margin`, with a budget of
+    :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the limiting
+    vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
+    """
+    single = float(lmi_delay_margin(params, whole, kind, method).margin or 0.0)
+    if kind != "frozen" or enumerated(params, whole):
+        return single, {}
+    lower = max(single, known)
+    if known > 0:
+        found = cover_margin(params, whole, method, attempts=2, lower=lower, budget=MARGIN_BUDGET)
+        vertex, limit, margin = found.vertex, found.limit, found.margin
+    else:
+        (vertex, limit), margin = limiting_vertex(params, whole, method), lower
+    return margin, {"margin_limit": limit, "margin_limit_vertex": list(vertex)}
 
 
 def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:

@@ -22,7 +22,7 @@ import numpy as np
 from teleopkit.gains import GainBox, GainPolytope
 from teleopkit.params import TeleoperatorParams
 
-__all__ = ["nuno_delay_margin", "nuno_margins", "nuno_polytope"]
+__all__ = ["nuno_delay_margin", "nuno_joint_margins", "nuno_margins", "nuno_polytope"]
 
 ASSUMPTIONS = (
     "nonlinear teleoperator with elastic remote joints (no linearisation)",
@@ -94,6 +94,29 @@ def nuno_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
     return GainPolytope.from_box(box).intersect(normals, np.full(n, -eps), labels)
 
 
+def nuno_joint_margins(params: TeleoperatorParams, actions: np.ndarray) -> np.ndarray:
+    """Largest common bound ``T* = T_l* = T_r*`` each joint meets at the given gains.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (local gains ``K_l, B_l``).
+    actions : ndarray, shape (..., 2 n)
+        Remote gains ``[K_r..., B_r...]``.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        ``sqrt(B_l B_r / (K_l K_r))`` per joint (``inf`` where ``K_l K_r = 0``).
+    """
+    n = params.n_joints
+    actions = np.asarray(actions, dtype=float)
+    kl, bl = np.array(params.local_gains.stiffness), np.array(params.local_gains.damping)
+    product = kl * actions[..., :n]
+    with np.errstate(divide="ignore"):
+        return np.where(product > 0, np.sqrt(bl * actions[..., n:] / product), np.inf)
+
+
 def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
     """Largest common bound ``T* = T_l* = T_r*`` for which the whole box meets the condition.
 
@@ -109,9 +132,5 @@ def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
     float
         ``min_i sqrt(B_l B_r,min / (K_l K_r,max))`` (the supremum; ``inf`` when every ``K`` is 0).
     """
-    margins = []
-    for i in range(box.n_joints):
-        kl, bl = params.local_gains.stiffness[i], params.local_gains.damping[i]
-        product = kl * box.kr[i][1]
-        margins.append(math.inf if product == 0 else math.sqrt(bl * box.br[i][0] / product))
-    return min(margins)
+    worst = [k[1] for k in box.kr] + [b[0] for b in box.br]
+    return float(nuno_joint_margins(params, np.asarray(worst)).min())

@@ -45,6 +45,10 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
         verdict = "CERTIFIED" if cert.certified else "NOT CERTIFIED"
         lines += ["", f"[{cert.method}] {verdict} for {cert.gain_variation} gains",
                   f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"]
+        if "margin_limit" in cert.details:
+            limit, vertex = cert.details["margin_limit"], cert.details["margin_limit_vertex"]
+            lines.append(f"  margin limit    {limit:.4g} s (certified at the gain vertex {vertex} "
+                         "alone)")
         label = "admissible" if cert.polytope_certified else "uncertified"
         lines += [f"  {f'{label} j{i + 1}':<16}{_polygon(cert, i)}" for i in range(box.n_joints)]
         if cert.violation:

@@ -5,10 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.closed_form import nuno_polytope
+from certify import exact_constant_margin
+from teleopkit.certification import certify_gains
+from teleopkit.closed_form import nuno_delay_margin, nuno_polytope
 from teleopkit.gains import GainBox, GainPolytope
+from teleopkit.linearize import rest_systems
 from teleopkit.lmi_bridge import lmi_certificate, lmi_delay_margin
-from teleopkit.lmi_cover import cover_certificate, set_certificate
+from teleopkit.lmi_cover import (
+    cover_certificate,
+    cover_margin,
+    limiting_vertex,
+    set_certificate,
+)
 from teleopkit.params import paper_setup
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
@@ -53,7 +61,36 @@ def test_small_sets_and_switching_gains_are_one_lmi(one_joint):
     assert set_certificate(one_joint, whole, 1.5, 1.5, "frozen").cells == (whole,)
 
 
+@pytest.fixture(scope="module")
+def narrow_margin(one_joint):
+    return cover_margin(one_joint, GainPolytope.from_box(NARROW))
+
+
+def test_the_cover_margin_lies_between_the_switching_margin_and_the_vertex_limit(
+        one_joint, narrow_margin):
+    whole = GainPolytope.from_box(NARROW)
+    switching = lmi_delay_margin(one_joint, whole, "switching").margin
+    assert narrow_margin.vertex == (10.0, 30.0)  # largest K_r, smallest B_r
+    vertices = [lmi_delay_margin(one_joint, GainPolytope.from_box(GainBox(((k, k),), ((b, b),))),
+                                 "frozen").margin for k, b in whole.vertices()]
+    assert narrow_margin.limit == pytest.approx(min(vertices))
+    assert switching < narrow_margin.margin <= 0.9 * narrow_margin.limit
+    cover = narrow_margin.cover
+    assert cover is not None and cover.certified and narrow_margin.solves >= cover.solves
+    for cert in cover.certificates:
+        assert cert.verify() and cert.delay_bounds == (narrow_margin.margin,) * 2
+
+
+def test_a_known_margin_above_the_vertex_limit_is_returned_without_covers(one_joint,
+                                                                          narrow_margin):
+    known = 1.2 * narrow_margin.limit
+    result = cover_margin(one_joint, GainPolytope.from_box(NARROW), lower=known)
+    assert result.margin == known and result.cover is None and result.solves == 0
+
+
 def test_bad_input(one_joint):
+    with pytest.raises(ValueError, match="shrink"):
+        cover_margin(one_joint, GainPolytope.from_box(NARROW), shrink=1.0)
     with pytest.raises(ValueError, match="budget"):
         cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.0, 1.0, budget=0)
     empty = nuno_polytope(one_joint, GainBox(((40.0, 50.0),), ((1.0, 5.0),)), 1.0, 1.0)
@@ -68,3 +105,25 @@ def test_paper_closed_form_set_is_covered_by_the_lmi():
     closed = nuno_polytope(params, GainBox.uniform((1.0, 50.0), (1.0, 150.0)), 1.0, 1.0)
     cover = cover_certificate(params, closed, 1.0, 1.0)
     assert cover.certified, cover.reason
+
+
+@pytest.mark.slow
+def test_paper_box_limiting_vertex_beats_the_closed_form_below_the_exact_margin():
+    """Two joints, the whole paper box: the vertex K_r = 50, B_r = 1 limits every method."""
+    params = paper_setup()
+    box = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
+    vertex, limit = limiting_vertex(params, GainPolytope.from_box(box))
+    assert vertex == (50.0, 50.0, 1.0, 1.0)
+    exact = min(exact_constant_margin(s) for s in rest_systems(params, np.asarray(vertex)))
+    assert nuno_delay_margin(params, box) < limit <= exact
+
+
+@pytest.mark.slow
+def test_two_joint_constant_gain_margin_beats_switching_and_the_closed_form():
+    """Two joints, a certified box: covers lift the margin above the one-functional bound."""
+    params = paper_setup()
+    box = GainBox.uniform((5.0, 10.0), (30.0, 60.0))
+    cert = certify_gains(params, box, 1.0, 1.0, method="lmi")
+    switching = lmi_delay_margin(params, GainPolytope.from_box(box), "switching").margin
+    assert cert.certified and cert.delay_margin > max(switching, nuno_delay_margin(params, box))
+    assert cert.delay_margin <= cert.details["margin_limit"]
