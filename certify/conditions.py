@@ -415,8 +415,9 @@ class LMIMethod(ABC):
                     continue
                 assert system.uncertainty is not None
                 multiplier = [var[f"{name}{j}@{k}"] for name in ("MQ", "MS", "MR")]
-                u, right, deltas = storage.extend(unit * (slack @ g), v,
-                                                  system.uncertainty.deviations()[:, owner], mats)
+                u = unit * (slack @ g) if g.shape[1] else None
+                u, right, deltas = storage.extend(u, v, system.uncertainty.deviations()[:, owner],
+                                                  mats)
                 out += robust_conditions(label, m0, u, right, multiplier, deltas)
         return out
 
@@ -485,7 +486,10 @@ class _Storage:
 
     def extend(self, u: Any, v: np.ndarray, deltas: np.ndarray,
                mats: Mapping[str, Any]) -> tuple[Any, np.ndarray, np.ndarray]:
-        """Append the storage term ``He(U_P Delta_P V_P^T)`` to the factors of ``Delta``."""
+        """Append the storage term ``He(U_P Delta_P V_P^T)`` to the factors of ``Delta``.
+
+        ``u`` is ``None`` when no parameter changes the dynamics (``v`` has no column).
+        """
         if not self.scheduled:
             return u, v, deltas
         rest = self.size - self.n
@@ -495,7 +499,7 @@ class _Storage:
         for k in range(q):
             v_p[self.n:2 * self.n, k * self.n:(k + 1) * self.n] = np.eye(self.n)
         columns = np.repeat(self.deviations, self.n, axis=1)
-        return (bmat([[u, u_p]]) if v.shape[1] else u_p, np.hstack([v, v_p]),
+        return (u_p if u is None else bmat([[u, u_p]]), np.hstack([v, v_p]),
                 np.hstack([deltas, columns]))
 
 

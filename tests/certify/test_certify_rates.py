@@ -105,3 +105,12 @@ def test_bad_rates_are_one_line_errors(rates, match):
     with pytest.raises(ValueError, match=match) as info:
         AffineUncertainty((direction,), [[0.0], [1.0]], rates=rates)
     assert "\n" not in str(info.value)
+
+
+def test_a_rate_bounded_parameter_that_leaves_the_dynamics_unchanged(benchmark_system):
+    still = Direction(np.zeros((2, 2)), (np.zeros((2, 2)),))
+    family = PolytopicDelaySystem((benchmark_system,), "switching",
+                                  AffineUncertainty((still,), [[0.0], [1.0]], rates=[1.0]))
+    certificate = certify_delay(family, 1.0, "rcc")
+    assert certificate.certified and certificate.verify() and "dP0" in certificate.matrices
+    assert certify_delay(family, 1.9, "rcc").certified is False  # RCC alone reaches 1.867
