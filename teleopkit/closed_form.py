@@ -38,6 +38,15 @@ def _check_bounds(tl_max: float, tr_max: float) -> None:
             raise ValueError(f"delay bound {name} must be positive and finite, got {value}")
 
 
+def _gain_products(params: TeleoperatorParams,
+                   actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``K_l K_r`` and ``B_l B_r`` of each joint for remote gains ``[K_r..., B_r...]``."""
+    n = params.n_joints
+    actions = np.asarray(actions, dtype=float)
+    return (np.array(params.local_gains.stiffness) * actions[..., :n],
+            np.array(params.local_gains.damping) * actions[..., n:])
+
+
 def nuno_margins(params: TeleoperatorParams, actions: np.ndarray, tl_max: float,
                  tr_max: float) -> np.ndarray:
     """Slack ``4 B_l B_r - (T_l* + T_r*)^2 K_l K_r`` of each joint (positive means satisfied).
@@ -57,10 +66,8 @@ def nuno_margins(params: TeleoperatorParams, actions: np.ndarray, tl_max: float,
         Slack per joint.
     """
     _check_bounds(tl_max, tr_max)
-    n = params.n_joints
-    actions = np.asarray(actions, dtype=float)
-    kl, bl = np.array(params.local_gains.stiffness), np.array(params.local_gains.damping)
-    return 4 * bl * actions[..., n:] - (tl_max + tr_max) ** 2 * kl * actions[..., :n]
+    stiffness, damping = _gain_products(params, actions)
+    return 4 * damping - (tl_max + tr_max) ** 2 * stiffness
 
 
 def nuno_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
@@ -109,12 +116,9 @@ def nuno_joint_margins(params: TeleoperatorParams, actions: np.ndarray) -> np.nd
     ndarray, shape (..., n)
         ``sqrt(B_l B_r / (K_l K_r))`` per joint (``inf`` where ``K_l K_r = 0``).
     """
-    n = params.n_joints
-    actions = np.asarray(actions, dtype=float)
-    kl, bl = np.array(params.local_gains.stiffness), np.array(params.local_gains.damping)
-    product = kl * actions[..., :n]
+    stiffness, damping = _gain_products(params, actions)
     with np.errstate(divide="ignore"):
-        return np.where(product > 0, np.sqrt(bl * actions[..., n:] / product), np.inf)
+        return np.where(stiffness > 0, np.sqrt(damping / stiffness), np.inf)
 
 
 def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
