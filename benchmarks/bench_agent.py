@@ -12,9 +12,9 @@ Rows:
   replaced by teleopkit's two-path critic body (state 128-64, action 64, merged 60-36-1), so both
   sides do the same arithmetic per update.
 - **latency**: one observation to one applied action, as in a 1 kHz haptic loop: numpy policy
-  (:class:`teleopkit.agent.GainPolicy`) + :meth:`SafetyLayer.project`, the torch actor +
+  (:class:`teleopkit.rl.td3.GainPolicy`) + :meth:`SafetyLayer.project`, the torch actor +
   projection, and the projection alone by the compiled kernel and by the cvxpy + Clarabel
-  reference (:meth:`SafetyLayer.project_reference`); p50 and p99 over ``--calls`` calls (the
+  reference (:meth:`SafetyLayer.project_qp`); p50 and p99 over ``--calls`` calls (the
   reference over 500).
 """
 
@@ -29,8 +29,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from teleopkit.agent import TD3, Critic, ReplayBuffer, TD3Config
-from teleopkit.env import FlexTeleopVectorEnv
+from teleopkit.rl.env import FlexTeleopVectorEnv
+from teleopkit.rl.networks import Critic
+from teleopkit.rl.replay import ReplayBuffer
+from teleopkit.rl.td3 import TD3, TD3Config
 
 OBS, ACT = 14, 4
 
@@ -139,7 +141,7 @@ def latency_rows(env, calls: int) -> list[tuple[str, float, float]]:
         ("torch actor + projection", *percentiles(torch_policy, calls)),
         ("projection (compiled kernel)", *percentiles(lambda: layer.project(raw), calls)),
         ("projection (cvxpy + Clarabel)",
-         *percentiles(lambda: layer.project_reference(raw), 500)),
+         *percentiles(lambda: layer.project_qp(raw), 500)),
     ]
 
 

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from teleopkit.campaign import CampaignSpec, local_cluster, run_campaign
+from teleopkit.robustness.campaign import local_cluster, run_campaign
+from teleopkit.robustness.spec import CampaignSpec
 
 
 def campaign_spec(scenarios: int, duration: float) -> CampaignSpec:
@@ -45,7 +46,7 @@ def run_with(workers: int, spec: CampaignSpec, out: Path,
 
     start = time.perf_counter()
     with local_cluster(workers) as cluster, Client(cluster) as client:
-        client.run(lambda: __import__("teleopkit.campaign"))  # import before timing
+        client.run(lambda: __import__("teleopkit.robustness.campaign"))  # import before timing
         ready = time.perf_counter()
         table = run_campaign(spec, out, client=client, chunk=chunk, resume=False)
         done = time.perf_counter()

@@ -19,10 +19,10 @@ from certify.bisection import _bisect, _initial_guess
 from certify.methods import get_method
 from certify.solve import LMIProblem
 from certify.system import as_polytope
-from teleopkit.gains import GainBox, GainPolytope
-from teleopkit.linearize import rest_systems
-from teleopkit.lmi_bridge import gain_set_system
-from teleopkit.params import TeleoperatorParams, paper_setup
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import gain_set_system
+from teleopkit.model.linearize import rest_systems
+from teleopkit.model.params import TeleoperatorParams, paper_setup
 
 RANK = 2
 """Rank of each delay matrix (a teleoperator transmits positions only: rank 2 for 2 joints)."""

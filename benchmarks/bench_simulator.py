@@ -17,9 +17,9 @@ import numpy as np
 import pandas as pd
 
 from teleopkit import FourierDelay, Scenario, Simulator, paper_scenarios
-from teleopkit.delays import PAPER_C0, PAPER_COS, PAPER_DELAY_MAX, PAPER_F0, PAPER_SIN
-from teleopkit.dynamics import inertia_coefficients
-from teleopkit.params import TeleoperatorParams, paper_setup
+from teleopkit.delays.profiles import PAPER_C0, PAPER_COS, PAPER_DELAY_MAX, PAPER_F0, PAPER_SIN
+from teleopkit.model.dynamics import inertia_coefficients
+from teleopkit.model.params import TeleoperatorParams, paper_setup
 
 GAINS = np.array([10.0, 10.0, 30.0, 30.0])
 """Remote gains ``[K_r, K_r, B_r, B_r]`` of every run."""

@@ -16,9 +16,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from teleopkit.certification import GainCertificate, certify_gains
-from teleopkit.gains import GainBox
-from teleopkit.params import paper_setup
-from teleopkit.report import certificate_table
+from teleopkit.certification.gain_sets import GainBox
+from teleopkit.certification.report import certificate_table
+from teleopkit.model.params import paper_setup
 from teleopkit.safety import SafetyLayer
 
 BUDGET = os.environ.get("TELEOPKIT_DOCS_BUDGET", "full")

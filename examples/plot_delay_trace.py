@@ -21,7 +21,7 @@ import pandas as pd
 
 import teleopkit as tk
 from teleopkit.certification import certify_gains
-from teleopkit.gains import GainBox
+from teleopkit.certification.gain_sets import GainBox
 from teleopkit.plots import plot_run
 
 BUDGET = os.environ.get("TELEOPKIT_DOCS_BUDGET", "full")

@@ -31,7 +31,7 @@ print(env.action_space)
 # The certified set
 # -----------------
 # By default the environment certifies the box ``K_r in [1, 50]``, ``B_r in [1, 150]`` with the
-# closed form for delays up to 1 s (:func:`teleopkit.env.default_certificate`). The box itself is
+# closed form for delays up to 1 s (:func:`teleopkit.rl.env.default_certificate`). The box itself is
 # not certified; the certificate's polytope, the box cut by the closed-form half-plane of each
 # joint, is, and the safety layer projects onto it.
 certificate = core.certificate
@@ -101,7 +101,7 @@ print("unsafe actions so far:", core.unsafe_actions)
 
 # %%
 # Rewards ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)`` of both episodes (the
-# weights are :class:`teleopkit.env.RewardWeights`); the opening transient dominates.
+# weights are :class:`teleopkit.rl.env.RewardWeights`); the opening transient dominates.
 t = 0.01 * np.arange(1, len(rewards) + 1)
 fig, ax = plt.subplots(figsize=(7, 3), layout="constrained")
 ax.plot(t, rewards, label="random policy")

@@ -79,7 +79,8 @@ results = pd.DataFrame(rows)
 results.round(4)
 
 # %%
-# Literature values for this system (DESIGN.md): for fast-varying delays Jensen on both
+# Literature values for this system (Fridman & Shaked; Park, Ko & Jeong 2011; Seuret &
+# Gouaisbaut 2013): for fast-varying delays Jensen on both
 # sub-intervals 1.345 and the reciprocally convex combination 1.867; for constant delays Jensen
 # 4.472 and Wirtinger 6.059. The scaled small-gain test (``io``) does not use the delay
 # derivative, so its two rows agree. No certificate exceeds the exact margin:

@@ -34,8 +34,8 @@ from gymnasium.wrappers import RecordEpisodeStatistics, RescaleAction
 from gymnasium.wrappers import vector as vector_wrappers
 
 import teleopkit  # noqa: F401  (registers teleopkit/FlexTeleop-v0)
-from teleopkit.baselines import fixed_gains
-from teleopkit.env import ENV_ID
+from teleopkit.rl.baselines import fixed_gains
+from teleopkit.rl.env import ENV_ID
 
 torch.set_num_threads(1)  # small networks; one core is enough
 
@@ -171,7 +171,7 @@ assert inside.all() and core.unsafe_actions == 0
 
 # %%
 # As in :doc:`/auto_examples/plot_gymnasium`: the certificate behind the set (the closed form of
-# :func:`teleopkit.env.default_certificate`) covers *frozen* gains, every constant gain in the
+# :func:`teleopkit.rl.env.default_certificate`) covers *frozen* gains, every constant gain in the
 # set; a policy that changes the gains every 10 ms moves inside the set but needs a ``switching``
 # or ``rate:R`` certificate (:doc:`/theory/certification`) to be covered as it varies.
 print("gain variation covered:", core.certificate.gain_variation)
@@ -194,9 +194,9 @@ axes[1].legend(fontsize="small")
 # %%
 # The natively batched environment
 # --------------------------------
-# teleopkit also registers a vector entry point: :class:`teleopkit.env.FlexTeleopVectorEnv`
+# teleopkit also registers a vector entry point: :class:`teleopkit.rl.env.FlexTeleopVectorEnv`
 # simulates ``num_envs`` scenarios in one compiled simulator call with one batched projection
-# (what teleopkit's own trainer, :func:`teleopkit.training.train`, collects experience with).
+# (what teleopkit's own trainer, :func:`teleopkit.rl.training.train`, collects experience with).
 # ``gymnasium.make_vec`` builds it with ``vectorization_mode="vector_entry_point"``, and
 # Gymnasium's vector wrappers apply to it. SB3 drives its own ``VecEnv`` API rather than
 # Gymnasium's vector environments (its ``DummyVecEnv`` steps copies of the single environment

@@ -2,8 +2,8 @@ r"""
 Parameters that switch, drift slowly, or stay constant
 ======================================================
 
-A parameter of a delay system can be certified in three ways (DESIGN section 4, classes a-c):
-constant, varying at a bounded rate, or switching arbitrarily fast. The classes differ in what
+A parameter of a delay system can be certified in three ways: constant, varying at a bounded
+rate, or switching arbitrarily fast. The classes differ in what
 the Lyapunov-Krasovskii functional may depend on, and a system can be stable in one class and
 not in another. This tutorial takes the classic pair of oscillators
 

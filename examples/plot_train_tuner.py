@@ -2,14 +2,14 @@
 Train a safe TD3 tuner and evaluate it against static gains
 ===========================================================
 
-:func:`teleopkit.training.train` trains a TD3 agent that retunes the remote gains
+:func:`teleopkit.rl.training.train` trains a TD3 agent that retunes the remote gains
 ``[K_r^1, K_r^2, B_r^1, B_r^2]`` every control period (10 ms). Every action it takes, exploration
 noise included, passes through the safety layer of the environment's certificate before it
 reaches the simulator, so training never applies a gain outside the certified set. This tutorial
 trains a tuner, reads its log, finds the best *constant* certified gains with
-:func:`teleopkit.baselines.best_static_gains`, and compares the trained policy, the shipped
+:func:`teleopkit.rl.baselines.best_static_gains`, and compares the trained policy, the shipped
 pretrained policy, the paper's fixed gains and the best static gains on held-out scenarios with
-:func:`teleopkit.evaluation.evaluate`: the same comparison as ``teleopkit evaluate`` and
+:func:`teleopkit.rl.evaluation.evaluate`: the same comparison as ``teleopkit evaluate`` and
 ``teleopkit reproduce``.
 """
 
@@ -30,11 +30,20 @@ import matplotlib.pyplot as plt
 import numpy as np
 import torch
 
-from teleopkit.agent import GainPolicy, TD3Config
-from teleopkit.baselines import best_static_gains, fixed_gains
-from teleopkit.env import FlexTeleopConfig, default_certificate
-from teleopkit.evaluation import EVAL_SEED, ConstantGains, evaluate, rollout, summarise, to_markdown
-from teleopkit.training import BEST_POLICY, TrainConfig, train
+from teleopkit.certification.analysis import default_certificate
+from teleopkit.rl.baselines import best_static_gains, fixed_gains
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.evaluation import (
+    EVAL_SEED,
+    ConstantGains,
+    evaluate,
+    rollout,
+    summarise,
+    to_markdown,
+)
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.td3 import TD3Config
+from teleopkit.rl.training import BEST_POLICY, TrainConfig, train
 
 torch.set_num_threads(1)  # small networks; the simulator needs the other core
 
@@ -52,12 +61,12 @@ STATIC = (8, 4, 30) if SMALL else (16, 8, 200)
 # %%
 # The training configuration
 # --------------------------
-# :class:`teleopkit.training.TrainConfig` holds every setting of a run. Training proceeds in
+# :class:`teleopkit.rl.training.TrainConfig` holds every setting of a run. Training proceeds in
 # *rounds*, one episode of each of the ``num_envs`` scenarios simulated together, and
 # ``total_steps`` (transitions over all scenarios) is rounded up to whole rounds. The first
 # ``learning_starts`` transitions use uniform random gains (projected like every other action)
 # and fill the replay buffer; the networks' input standardisation is fixed from them. The agent
-# settings, :class:`teleopkit.agent.TD3Config`, are the paper's except for the learning rates
+# settings, :class:`teleopkit.rl.td3.TD3Config`, are the paper's except for the learning rates
 # (the defaults of ``TrainConfig``; the docstring says why), here with a smaller minibatch on the
 # small budget.
 env_config = FlexTeleopConfig(episode_length=EPISODE)
@@ -77,7 +86,7 @@ print(f"{config.total_steps} transitions in {ROUNDS} rounds of {per_round}")
 # %%
 # Training
 # --------
-# With an output directory, :func:`teleopkit.training.train` writes a checkpoint, the log, the
+# With an output directory, :func:`teleopkit.rl.training.train` writes a checkpoint, the log, the
 # last and the best policy and the configuration, each atomically, after every round
 # (``checkpoint_every``). ``train(config, out_dir, resume=True)`` (``teleopkit train --resume``)
 # continues an interrupted run exactly where its last checkpoint left it, and a run can be
@@ -122,8 +131,8 @@ print({key: trained.metadata[key] for key in ("rounds", "validation_cost")})
 # -------------------------------
 # An honest baseline for a tuner is not only the paper's fixed gains ``K_r = 10, B_r = 30`` but
 # the best *constant* gains that the same safety layer allows.
-# :func:`teleopkit.baselines.best_static_gains` searches them on training scenarios (seed
-# :data:`teleopkit.baselines.BASELINE_SEED`, apart from the evaluation seed): a grid of uniform
+# :func:`teleopkit.rl.baselines.best_static_gains` searches them on training scenarios (seed
+# :data:`teleopkit.rl.baselines.BASELINE_SEED`, apart from the evaluation seed): a grid of uniform
 # gains projected onto the certified set, then Nelder-Mead over all four gains, every candidate
 # projected. The cost is the paper's: minus the episode return.
 static_scenarios, grid_points, evaluations = STATIC
@@ -136,7 +145,7 @@ print(f"mean training cost {static.cost:.5g} ({static.evaluations} candidates si
 # The pretrained policy
 # ---------------------
 # The package ships a policy trained with a much larger budget by ``examples/train_pretrained.py``
-# (:meth:`teleopkit.agent.GainPolicy.pretrained`); it is the one ``teleopkit reproduce`` uses.
+# (:meth:`teleopkit.rl.td3.GainPolicy.pretrained`); it is the one ``teleopkit reproduce`` uses.
 # Its metadata records its training settings and the best static gains that ``reproduce``
 # compares it with (found with the default search on 40 s episodes).
 pretrained = GainPolicy.pretrained()
@@ -149,10 +158,10 @@ print("its stored best static gains:", np.round(pretrained.metadata["best_static
 # %%
 # Held-out evaluation
 # -------------------
-# :func:`teleopkit.evaluation.evaluate` runs every controller in closed loop through the same
+# :func:`teleopkit.rl.evaluation.evaluate` runs every controller in closed loop through the same
 # batched environment (so through the same safety layer) on the same held-out scenarios, drawn
-# from :data:`teleopkit.evaluation.EVAL_SEED`, which neither training nor the static search saw.
-# :class:`teleopkit.evaluation.ConstantGains` turns a gain vector into a controller.
+# from :data:`teleopkit.rl.evaluation.EVAL_SEED`, which neither training nor the static search saw.
+# :class:`teleopkit.rl.evaluation.ConstantGains` turns a gain vector into a controller.
 controllers = {
     "TD3 (this run)": trained,
     "TD3 (pretrained)": pretrained,
@@ -161,7 +170,7 @@ controllers = {
 }
 per_scenario = evaluate(controllers, SCENARIOS, EVAL_SEED, env_config)
 summary = summarise(per_scenario)
-print(to_markdown(summary, reference="best static"))
+print(to_markdown(summary, baseline="best static"))
 
 # %%
 # The table is ``mean ± standard deviation`` over the scenarios; the last column compares mean
@@ -200,10 +209,10 @@ ax.set_title(f"{SCENARIOS} held-out scenarios, {EPISODE:g} s episodes")
 # %%
 # What the certificate covers
 # ---------------------------
-# A tuner changes the gains every 10 ms. :func:`teleopkit.evaluation.rollout` records the applied
+# A tuner changes the gains every 10 ms. :func:`teleopkit.rl.evaluation.rollout` records the applied
 # gains of a run; here joint 1 of the first held-out scenario under both policies, with the
 # best static gains for reference. Every applied gain lies in the certified set, but the
-# environment's default certificate (:func:`teleopkit.env.default_certificate`, the closed form)
+# environment's default certificate (:func:`teleopkit.rl.env.default_certificate`, the closed form)
 # is for *frozen* gains: it guarantees stability for every constant gain in the set, not for gains
 # that vary in time within it. Gains that switch arbitrarily need a ``switching`` certificate and
 # gains of bounded rate a ``rate:R`` one (the LMI method, :doc:`/theory/certification`), passed

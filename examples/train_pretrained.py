@@ -6,7 +6,7 @@ Run from the repository root (one core)::
 
 It trains with the recipe below (seed 0; the same command resumes an interrupted run), finds the
 best static certified gains on the baseline training scenarios
-(:func:`teleopkit.baselines.best_static_gains` with its defaults), stores them in the metadata of
+(:func:`teleopkit.rl.baselines.best_static_gains` with its defaults), stores them in the metadata of
 the best policy by validation cost, writes the file and prints the held-out comparison that
 ``teleopkit reproduce`` regenerates. Training is deterministic: the run is bit for bit the same
 on every execution with this code (two runs in separate processes gave identical weights).
@@ -18,7 +18,7 @@ and 38 % below the paper's fixed gains. Seed 1 with the same recipe: 14 % below 
 gains. The cost of the last actor fluctuates from round to round (seed 0: 4 to 17 % below the
 best static gains between rounds 19 and 25), which is why the best actor by validation is kept.
 
-The recipe is the paper's TD3 (DESIGN.md section 6) except for the learning rates: 1e-3
+The recipe is the paper's TD3 (its Sections III.D and V.B) except for the learning rates: 1e-3
 instead of 1e-4 for actor and critics. After 10 rounds, 1e-4 was 25 % above the best static
 gains, 1e-3 9 % below (same seed and data). Rewards are scaled by 0.01 in the critic targets.
 """
@@ -30,10 +30,10 @@ from pathlib import Path
 
 import torch
 
-from teleopkit.agent import TD3Config
-from teleopkit.baselines import best_static_gains, fixed_gains
-from teleopkit.evaluation import ConstantGains, evaluate, summarise, to_markdown
-from teleopkit.training import TrainConfig, train
+from teleopkit.rl.baselines import best_static_gains, fixed_gains
+from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise, to_markdown
+from teleopkit.rl.td3 import TD3Config
+from teleopkit.rl.training import TrainConfig, train
 
 RECIPE = TrainConfig(
     total_steps=1_600_000,  # 25 rounds of 16 scenarios x 40 s: 96 000 gradient updates
@@ -69,7 +69,7 @@ def main() -> None:
     print(f"wrote {args.data} ({args.data.stat().st_size} bytes)")
     per_scenario = evaluate({"TD3": policy, "fixed": ConstantGains(fixed_gains()),
                              "best static": ConstantGains(static.gains)})
-    print(to_markdown(summarise(per_scenario), reference="best static"))
+    print(to_markdown(summarise(per_scenario), baseline="best static"))
 
 
 if __name__ == "__main__":

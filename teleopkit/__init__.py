@@ -3,51 +3,42 @@
 Simulate the teleoperator under any delay profile, certify gain ranges with Lyapunov-Krasovskii /
 LMI conditions (package :mod:`certify`), and tune the remote P+d gains with a TD3 agent whose every
 action is projected into the certified set.
+
+The layers, each a sub-package, from the bottom up: :mod:`teleopkit.model` (parameters,
+dynamics, P+d laws, linearisation), :mod:`teleopkit.delays` (delay profiles and channel
+histories), :mod:`teleopkit.sim` (scenarios, the simulator, metrics), :mod:`teleopkit.certification`
+(gain sets and their certificates), :mod:`teleopkit.safety` (the projection of every gain onto a
+certified set), :mod:`teleopkit.rl` (environments, TD3, training and evaluation) and
+:mod:`teleopkit.robustness` (campaigns and falsification). The names below load on first use,
+so ``import teleopkit`` stays fast; it also registers the Gymnasium id
+``teleopkit/FlexTeleop-v0``.
 """
 
-from teleopkit import env  # noqa: F401  (registers the Gymnasium id teleopkit/FlexTeleop-v0)
-from teleopkit.delays import (
-    ConstantDelay,
-    FourierDelay,
-    SinusoidalDelay,
-    SwitchingDelay,
-    TraceDelay,
-    parse_delay,
-)
-from teleopkit.params import (
-    ElasticJoints,
-    InitialState,
-    Operator,
-    PDGains,
-    PlanarArm,
-    TeleoperatorParams,
-    Wall,
-    paper_setup,
-)
-from teleopkit.scenarios import Scenario, paper_scenarios
-from teleopkit.simulator import Simulator, StepResult, Trajectory, simulate
+from teleopkit._lazy import lazy_namespace
+from teleopkit.rl.registration import register
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "ConstantDelay",
-    "ElasticJoints",
-    "FourierDelay",
-    "InitialState",
-    "Operator",
-    "PDGains",
-    "PlanarArm",
-    "Scenario",
-    "Simulator",
-    "SinusoidalDelay",
-    "StepResult",
-    "SwitchingDelay",
-    "TeleoperatorParams",
-    "TraceDelay",
-    "Trajectory",
-    "Wall",
-    "paper_scenarios",
-    "paper_setup",
-    "parse_delay",
-    "simulate",
-]
+_EXPORTS = {
+    **{name: "model.params" for name in (
+        "ElasticJoints", "InitialState", "Operator", "PDGains", "PlanarArm", "TeleoperatorParams",
+        "Wall", "paper_setup")},
+    **{name: "delays.profiles" for name in (
+        "ConstantDelay", "FourierDelay", "SinusoidalDelay", "SwitchingDelay", "TraceDelay")},
+    "parse_delay": "delays.spec",
+    "Scenario": "sim.scenarios",
+    "paper_scenarios": "sim.scenarios",
+    "Simulator": "sim.simulator",
+    "simulate": "sim.simulator",
+    "StepResult": "sim.trajectory",
+    "Trajectory": "sim.trajectory",
+    "GainBox": "certification.gain_sets",
+    "GainCertificate": "certification.certificate",
+    "certify_gains": "certification.analysis",
+    "SafetyLayer": "safety.layer",
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _EXPORTS)
+
+register()

@@ -14,14 +14,14 @@ from typing import TYPE_CHECKING
 import click
 import numpy as np
 
-from teleopkit.simulator import DEFAULT_DT
+from teleopkit.sim.timing import DEFAULT_DT
 
 if TYPE_CHECKING:  # the commands import lazily: ``teleopkit --help`` must stay fast
     import pandas as pd
 
-    from teleopkit.agent import GainPolicy
-    from teleopkit.env import FlexTeleopConfig
-    from teleopkit.evaluation import Controller
+    from teleopkit.rl.env import FlexTeleopConfig
+    from teleopkit.rl.evaluation import Controller
+    from teleopkit.rl.policy import GainPolicy
 
 __all__ = ["cli", "main"]
 
@@ -65,7 +65,7 @@ def cli() -> None:
 def simulate(kr: str, br: str, duration: float, delay: str, seed: int, dt: float, out: Path,
              plot: Path | None) -> None:
     """Simulate the paper's teleoperator with constant remote gains and write the run as CSV."""
-    from teleopkit.simulator import simulate as run
+    from teleopkit.sim.simulator import simulate as run
 
     gains = np.array(_gain_vector(kr, "--kr") + _gain_vector(br, "--br"))
     table = run(gains, duration=duration, delay=delay, seed=seed, dt=dt)
@@ -109,9 +109,9 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
         methods_for,
         parse_gain_variation,
     )
-    from teleopkit.gains import GainBox, parse_range
-    from teleopkit.params import PDGains, paper_setup
-    from teleopkit.report import certificate_table
+    from teleopkit.certification.gain_sets import GainBox, parse_range
+    from teleopkit.certification.report import certificate_table
+    from teleopkit.model.params import PDGains, paper_setup
 
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
@@ -146,7 +146,7 @@ CERTIFICATE_OPTION = click.option(
 def _env_config(certificate: Path | None, duration: float) -> FlexTeleopConfig:
     """Environment settings with the certificate read from ``certificate`` (if given)."""
     from teleopkit.certification import GainCertificate
-    from teleopkit.env import FlexTeleopConfig
+    from teleopkit.rl.env import FlexTeleopConfig
 
     loaded = None if certificate is None else GainCertificate.from_json(certificate.read_text())
     return FlexTeleopConfig(certificate=loaded, episode_length=duration)
@@ -170,10 +170,10 @@ def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
                   certificate: Path | None) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
-    The other settings are the defaults of teleopkit.training.TrainConfig: 40 s episodes, the
+    The other settings are the defaults of teleopkit.rl.training.TrainConfig: 40 s episodes, the
     paper's TD3 with learning rates 1e-3, best policy kept by validation cost.
     """
-    from teleopkit.training import TrainConfig, train
+    from teleopkit.rl.training import TrainConfig, train
 
     _single_thread()
     config = TrainConfig(total_steps=steps, num_envs=envs, seed=seed,
@@ -186,7 +186,7 @@ def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
 
 def _best_static(policies: Sequence[GainPolicy], config: FlexTeleopConfig) -> np.ndarray:
     """Best static gains stored with the first policy, or found now in the config's set."""
-    from teleopkit.baselines import best_static_gains
+    from teleopkit.rl.baselines import best_static_gains
 
     stored = policies[0].metadata.get("best_static_gains")
     if stored is not None and config.certificate is None:
@@ -198,15 +198,15 @@ def _best_static(policies: Sequence[GainPolicy], config: FlexTeleopConfig) -> np
 def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: FlexTeleopConfig,
              out: Path) -> pd.DataFrame:
     """Evaluate TD3, fixed and best static gains; write the report; return the summary."""
-    from teleopkit.baselines import fixed_gains
-    from teleopkit.evaluation import ConstantGains, evaluate, save_report, to_markdown
+    from teleopkit.rl.baselines import fixed_gains
+    from teleopkit.rl.evaluation import ConstantGains, evaluate, save_report, to_markdown
 
     controllers: dict[str, Controller | list[Controller]] = {
         "TD3": list(policies), "fixed": ConstantGains(fixed_gains()),
         "best static": ConstantGains(_best_static(policies, config))}
     per_scenario = evaluate(controllers, scenarios, seed, config)
-    summary = save_report(per_scenario, out, reference="best static")
-    click.echo(to_markdown(summary, reference="best static"), nl=False)
+    summary = save_report(per_scenario, out, baseline="best static")
+    click.echo(to_markdown(summary, baseline="best static"), nl=False)
     return summary
 
 
@@ -217,7 +217,7 @@ def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: 
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios.")
 @click.option("--seed", type=click.IntRange(min=0), default=7_777, show_default=True,
-              help="Seed of the held-out scenarios (teleopkit.evaluation.EVAL_SEED).")
+              help="Seed of the held-out scenarios (teleopkit.rl.evaluation.EVAL_SEED).")
 @click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=40.0,
               show_default=True, help="Episode length [s].")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path),
@@ -227,7 +227,7 @@ def _compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: 
 def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                      duration: float, out: Path, certificate: Path | None) -> int:
     """Compare TD3 policies with fixed and best static certified gains on held-out scenarios."""
-    from teleopkit.agent import GainPolicy
+    from teleopkit.rl.policy import GainPolicy
 
     _single_thread()
     policies = [GainPolicy.load(path) for path in policy_files]
@@ -245,9 +245,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
               help="Held-out scenarios of the comparison table.")
 def reproduce_command(out: Path, scenarios: int) -> int:
     """Paper figures and comparison table from the shipped pretrained policy (no training)."""
-    from teleopkit.agent import GainPolicy
-    from teleopkit.evaluation import EVAL_SEED, ConstantGains, rollout
     from teleopkit.plots import save_paper_figures
+    from teleopkit.rl.evaluation import EVAL_SEED, ConstantGains, rollout
+    from teleopkit.rl.policy import GainPolicy
 
     _single_thread()
     policy = GainPolicy.pretrained()
@@ -294,7 +294,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _campaign_client(workers: int | None, scheduler: str | None) -> str | None:
-    """The ``client`` argument of :func:`~teleopkit.campaign.run_campaign` from the options."""
+    """The ``client`` of :func:`~teleopkit.robustness.campaign.run_campaign` from the options."""
     if scheduler is not None and workers is not None:
         raise click.UsageError("--workers sizes the local cluster; it cannot be combined with "
                                "--scheduler")
@@ -322,7 +322,8 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
     """Run a robustness campaign (YAML, JSON or TOML SPEC) on Dask; one row per scenario."""
     import time
 
-    from teleopkit.campaign import CampaignInterrupted, CampaignSpec, run_campaign
+    from teleopkit.robustness.campaign import CampaignInterrupted, run_campaign
+    from teleopkit.robustness.spec import CampaignSpec
 
     client = _campaign_client(workers, scheduler)
     loaded = CampaignSpec.from_file(spec)
@@ -378,9 +379,9 @@ def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, 
                     seed: int, out: Path | None) -> int:
     """Search the worst adversarial delays and gains in a certified set (exit 1: a run diverged)."""
     from teleopkit.certification import certify_gains
-    from teleopkit.falsify_search import SearchSpace, search
-    from teleopkit.gains import GainBox, parse_range
-    from teleopkit.params import paper_setup
+    from teleopkit.certification.gain_sets import GainBox, parse_range
+    from teleopkit.model.params import paper_setup
+    from teleopkit.robustness.search import SearchSpace, search
 
     params = paper_setup()
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))

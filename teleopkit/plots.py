@@ -106,7 +106,7 @@ def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) ->
     ----------
     runs : mapping of str to pandas.DataFrame
         Controller name to a run as returned by
-        :meth:`teleopkit.evaluation.Rollout.to_frame` (same scenario); the first is the main
+        :meth:`teleopkit.rl.evaluation.Rollout.to_frame` (same scenario); the first is the main
         one (delay profile and positions are drawn for it).
     out_dir : str or Path
         Directory (created if needed).

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.params import (
+from teleopkit.model.params import (
     ElasticJoints,
     InitialState,
     Operator,

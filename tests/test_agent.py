@@ -8,15 +8,12 @@ import numpy as np
 import pytest
 import torch
 
-from teleopkit.agent import (
-    TD3,
-    Actor,
-    GainPolicy,
-    ReplayBuffer,
-    TD3Config,
-    TorchProjection,
-)
-from teleopkit.env import DEFAULT_BOX, default_certificate
+from teleopkit.certification.analysis import DEFAULT_BOX, default_certificate
+from teleopkit.rl.networks import Actor
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.replay import ReplayBuffer
+from teleopkit.rl.td3 import TD3, TD3Config
+from teleopkit.rl.torch_projection import TorchProjection
 from teleopkit.safety import SafetyLayer
 
 torch.set_num_threads(1)

@@ -14,16 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from teleopkit.campaign import CampaignSpec, run_campaign
 from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
-from teleopkit.delay_ops import PiecewiseDelay
-from teleopkit.delays import TraceDelay, parse_delay
-from teleopkit.falsify_search import SearchSpace, search
-from teleopkit.gains import GainBox
-from teleopkit.params import paper_setup
-from teleopkit.scenarios import Scenario, paper_scenarios
-from teleopkit.simulator import Simulator
+from teleopkit.delays import PiecewiseDelay, TraceDelay, parse_delay
+from teleopkit.model.params import paper_setup
+from teleopkit.robustness.campaign import run_campaign
+from teleopkit.robustness.search import SearchSpace, search
+from teleopkit.robustness.spec import CampaignSpec
+from teleopkit.sim.scenarios import Scenario, paper_scenarios
+from teleopkit.sim.simulator import Simulator
 
 TINY = {"duration": 0.2, "factors": {"kr": [10, 20, 30]}}
 KNOWN = ("joint_stiffness, rotor_inertia, remote_mass_scale, local_mass_scale, kl, bl, delay, "
@@ -192,7 +192,8 @@ API_CASES = [
     (lambda: CampaignSpec.from_dict({"duration": 0}),
      "campaign duration must be positive and finite, got 0"),
     (lambda: CampaignSpec.from_dict({"dt": 0.001, "control_period": 0.0125}),
-     "campaign control_period 0.0125 must be a multiple of dt 0.001"),
+     "campaign control period 0.0125 s must be a positive multiple of the integration step "
+     "0.001 s"),
     (lambda: CampaignSpec.from_dict({"factors": {"bl": {"linspace": [1, 2]}}}),
      "factor 'bl': linspace needs a list of 3 numbers"),
     (lambda: CampaignSpec.from_dict({"factors": {"seed": [1.5]}}),

@@ -16,13 +16,24 @@ import pandas as pd
 import pytest
 
 import teleopkit as tk
-import teleopkit.campaign as campaign
-from teleopkit.agent import GainPolicy
-from teleopkit.campaign import FACTORS, METRIC_COLUMNS, CampaignSpec, plan_chunks, run_campaign
+import teleopkit.robustness.campaign as campaign
 from teleopkit.cli import main
-from teleopkit.delay_ops import PiecewiseDelay, SquareWaveDelay, scale_delay, stack_delays
-from teleopkit.delays import ConstantDelay, FourierDelay, SinusoidalDelay, SwitchingDelay
-from teleopkit.scenarios import sample_reference_gains
+from teleopkit.delays import (
+    ConstantDelay,
+    FourierDelay,
+    PiecewiseDelay,
+    SinusoidalDelay,
+    SquareWaveDelay,
+    SwitchingDelay,
+    scale_delay,
+    stack_delays,
+)
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.robustness.campaign import run_campaign
+from teleopkit.robustness.chunks import METRIC_COLUMNS, plan_chunks
+from teleopkit.robustness.factors import FACTORS
+from teleopkit.robustness.spec import CampaignSpec
+from teleopkit.sim.scenarios import sample_reference_gains
 
 TINY = {"duration": 0.5, "factors": {"delay": ["paper", "constant:0.3"], "kr": [10, 50],
                                      "joint_stiffness": [100, 60], "seed": [0, 1]}}

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.dynamics import (
+from teleopkit.model.dynamics import (
     coriolis_matrix,
     kinetic_energy,
     mass_matrix,
     mass_matrix_derivative,
 )
-from teleopkit.params import PlanarArm
+from teleopkit.model.params import PlanarArm
 
 ARMS = [PlanarArm(), PlanarArm((0.3, 0.25, 0.2, 0.15), (0.6, 0.4, 0.3, 0.2))]
 

@@ -10,13 +10,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import teleopkit
-from teleopkit.env import (
-    ENV_ID,
-    FlexTeleopEnv,
-    FlexTeleopVectorEnv,
-    RewardWeights,
-    default_certificate,
-)
+from teleopkit.certification.analysis import default_certificate
+from teleopkit.rl.env import ENV_ID, FlexTeleopEnv, FlexTeleopVectorEnv, RewardWeights
 from teleopkit.safety import Fallback
 
 N = 2  # joints
@@ -44,7 +39,7 @@ def test_check_env_passes():
 
 
 def test_registered_with_gymnasium_on_import():
-    assert teleopkit.env.ENV_ID == ENV_ID
+    assert teleopkit.rl.env.ENV_ID == ENV_ID
     env = gymnasium.make(ENV_ID, episode_length=SHORT)
     check_env(env.unwrapped)
     assert isinstance(env.unwrapped, FlexTeleopEnv)

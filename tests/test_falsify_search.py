@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from teleopkit.certification import GainCertificate, certify_gains
-from teleopkit.falsify_search import SearchSpace, decode, gain_schedule, search
-from teleopkit.gains import GainBox, GainPolytope
-from teleopkit.params import paper_setup
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.model.params import paper_setup
+from teleopkit.robustness.search import SearchSpace, decode, gain_schedule, search
 from teleopkit.safety import SafetyLayer
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))

@@ -1,4 +1,4 @@
-"""The compiled kernel agrees with the readable numpy reference."""
+"""The compiled kernel agrees with the readable numpy integrator."""
 
 from __future__ import annotations
 
@@ -17,7 +17,13 @@ from teleopkit import (
     Wall,
     paper_scenarios,
 )
-from teleopkit.params import ElasticJoints, InitialState, Operator, PDGains, TeleoperatorParams
+from teleopkit.model.params import (
+    ElasticJoints,
+    InitialState,
+    Operator,
+    PDGains,
+    TeleoperatorParams,
+)
 
 
 def _three_link() -> TeleoperatorParams:
@@ -33,7 +39,7 @@ def _three_link() -> TeleoperatorParams:
 
 
 def _compare(scenario: Scenario, gains: np.ndarray, periods: int) -> None:
-    runs = [Simulator(scenario, backend=b).advance(gains) for b in ("compiled", "reference")]
+    runs = [Simulator(scenario, backend=b).advance(gains) for b in ("compiled", "numpy")]
     assert runs[0].state.shape[0] == periods
     np.testing.assert_allclose(runs[0].state, runs[1].state, rtol=0, atol=1e-10)
     np.testing.assert_allclose(runs[0].delayed, runs[1].delayed, rtol=0, atol=1e-10)
@@ -58,6 +64,6 @@ def test_short_and_zero_delays(delay):
     scenario = replace(paper_scenarios(5, batch=1), forward=ConstantDelay(delay),
                        backward=ConstantDelay(delay))
     _compare(scenario, np.array([20.0, 15.0, 40.0, 35.0]), 1)
-    sims = [Simulator(scenario, backend=b) for b in ("compiled", "reference")]
+    sims = [Simulator(scenario, backend=b) for b in ("compiled", "numpy")]
     results = [sim.run(0.5) for sim in sims]
     np.testing.assert_allclose(results[0].state, results[1].state, rtol=0, atol=1e-10)

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.control import local_torque, operator_torque, remote_torque
-from teleopkit.dynamics import mass_matrix
-from teleopkit.linearize import (
+from teleopkit.model.dynamics import mass_matrix
+from teleopkit.model.laws import local_torque, operator_torque, remote_torque
+from teleopkit.model.linearize import (
     inertia_vertices,
     linearized_state_space,
     linearized_system,
     rest_systems,
 )
-from teleopkit.params import paper_setup
+from teleopkit.model.params import paper_setup
 
 
 def _nonlinear(params, gains, x, ql_delayed, th_delayed):

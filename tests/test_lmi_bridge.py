@@ -8,14 +8,19 @@ from scipy.spatial import ConvexHull
 
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import GainCertificate, certify_gains
-from teleopkit.closed_form import nuno_polytope
-from teleopkit.falsify import falsify
-from teleopkit.gains import GainBox, GainPolytope
-from teleopkit.linearize import rest_systems
-from teleopkit.lmi_bridge import LMI_METHOD, gain_set_system, lmi_certificate, lmi_delay_margin
-from teleopkit.params import (
+from teleopkit.certification.closed_form import nuno_polytope
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import (
+    LMI_METHOD,
+    gain_set_system,
+    lmi_certificate,
+    lmi_delay_margin,
+)
+from teleopkit.model.linearize import rest_systems
+from teleopkit.model.params import (
     paper_setup,
 )
+from teleopkit.robustness.sampling import falsify
 from teleopkit.safety import SafetyLayer
 
 WIDE = GainBox.uniform((1.0, 50.0), (1.0, 150.0), n_joints=1)

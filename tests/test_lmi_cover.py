@@ -7,17 +7,17 @@ import pytest
 
 from certify import exact_constant_margin
 from teleopkit.certification import certify_gains
-from teleopkit.closed_form import nuno_delay_margin, nuno_polytope
-from teleopkit.gains import GainBox, GainPolytope
-from teleopkit.linearize import rest_systems
-from teleopkit.lmi_bridge import lmi_certificate, lmi_delay_margin
-from teleopkit.lmi_cover import (
+from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope
+from teleopkit.certification.cover import (
     cover_certificate,
     cover_margin,
     limiting_vertex,
     set_certificate,
 )
-from teleopkit.params import paper_setup
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import lmi_certificate, lmi_delay_margin
+from teleopkit.model.linearize import rest_systems
+from teleopkit.model.params import paper_setup
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
 

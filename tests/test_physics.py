@@ -10,9 +10,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from teleopkit import ConstantDelay, FourierDelay, Operator, PDGains, Scenario, Simulator
-from teleopkit.control import environment_torque, local_torque, operator_torque, remote_torque
-from teleopkit.dynamics import coriolis_matrix, kinetic_energy, mass_matrix, remote_energy
-from teleopkit.params import paper_setup
+from teleopkit.model.dynamics import coriolis_matrix, kinetic_energy, mass_matrix, remote_energy
+from teleopkit.model.laws import environment_torque, local_torque, operator_torque, remote_torque
+from teleopkit.model.params import paper_setup
 
 HOLD = Operator(amplitudes=(0.0, 0.0))
 

@@ -15,10 +15,11 @@ import pandas as pd
 import pytest
 import torch
 
-from teleopkit.agent import TD3, GainPolicy, TD3Config
-from teleopkit.env import FlexTeleopConfig, FlexTeleopVectorEnv
-from teleopkit.evaluation import rollout
-from teleopkit.training import (
+from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
+from teleopkit.rl.evaluation import rollout
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.td3 import TD3, TD3Config
+from teleopkit.rl.training import (
     BEST_POLICY,
     CHECKPOINT,
     LOG,
@@ -124,8 +125,8 @@ def test_interrupted_save_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
 KILLED_RUN = textwrap.dedent("""
     import sys, time, torch
     from dataclasses import replace
-    from teleopkit.agent import TD3Config
-    from teleopkit.training import TrainConfig, train
+    from teleopkit.rl.td3 import TD3Config
+    from teleopkit.rl.training import TrainConfig, train
     torch.set_num_threads(1)
     config = TrainConfig(total_steps=40 * 12, num_envs=4, seed=5, episode_length=0.1,
                          learning_starts=80, buffer_size=2000, td3=TD3Config(batch_size=32))

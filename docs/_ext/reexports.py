@@ -1,9 +1,9 @@
 """Resolve cross-references to names re-exported at the top of a package.
 
-``teleopkit.simulate`` is defined in :mod:`teleopkit.simulator` and documented there, so a
-reference to ``teleopkit.simulate`` (or ``certify.max_delay``, or an attribute such as
-``teleopkit.TraceDelay.from_csv``) finds no target. This extension looks the name up at build time
-and retries with the module where the object is defined.
+``teleopkit.simulate`` is defined in :mod:`teleopkit.sim.simulator` and documented there, so a
+reference to ``teleopkit.simulate`` (or ``teleopkit.safety.SafetyLayer``, ``certify.max_delay``,
+or an attribute such as ``teleopkit.TraceDelay.from_csv``) finds no target. This extension looks
+the name up at build time and retries with the module where the object is defined.
 """
 
 from __future__ import annotations
@@ -16,24 +16,30 @@ PACKAGES = ("teleopkit", "certify")
 
 
 def _defining_name(target: str) -> str | None:
-    """``package.Name[.attr]`` -> ``module.Name[.attr]`` of the object's definition."""
-    package, _, rest = target.partition(".")
-    if package not in PACKAGES or not rest:
+    """``package[.sub].Name[.attr]`` -> ``module.Name[.attr]`` of the object's definition."""
+    parts = target.split(".")
+    if parts[0] not in PACKAGES:
         return None
-    head, _, tail = rest.partition(".")
-    try:
-        obj = getattr(importlib.import_module(package), head)
-    except (ImportError, AttributeError):
+    for i in range(len(parts) - 1, 0, -1):  # the longest importable module prefix
+        module_name = ".".join(parts[:i])
+        try:
+            obj = getattr(importlib.import_module(module_name), parts[i])
+        except ImportError:
+            continue
+        except AttributeError:
+            return None
+        rest = ".".join(parts[i:])
+        module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+        tail = ".".join(parts[i + 1:])
+        if isinstance(module, str) and isinstance(qualname, str) and module != module_name:
+            return f"{module}.{qualname}" + (f".{tail}" if tail else "")
+        # Data (a dict, a number) has no __module__: find the submodule that exports it.
+        for name, submodule in sorted(sys.modules.items()):
+            if (name.startswith(f"{module_name}.") and submodule is not None
+                    and parts[i] in getattr(submodule, "__all__", ())
+                    and getattr(submodule, parts[i], None) is obj):
+                return f"{name}.{rest}"
         return None
-    module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
-    if isinstance(module, str) and isinstance(qualname, str) and module != package:
-        return f"{module}.{qualname}" + (f".{tail}" if tail else "")
-    # Data (a dict, a number) has no __module__: find the submodule that exports it.
-    for name, submodule in sorted(sys.modules.items()):
-        if (name.startswith(f"{package}.") and submodule is not None
-                and head in getattr(submodule, "__all__", ())
-                and getattr(submodule, head, None) is obj):
-            return f"{name}.{rest}"
     return None
 
 

@@ -1,0 +1,120 @@
+"""The gain certificate: a verdict on a box of remote gains, as an object and as JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+
+__all__ = ["GainCertificate"]
+
+
+@dataclass(frozen=True)
+class GainCertificate:
+    """Verdict on a gain box for given delay bounds.
+
+    Parameters
+    ----------
+    certified : bool
+        Whether every gain of the box (varying as ``gain_variation`` says) is certified stable.
+    method : str
+        Certification method (``"nuno"``).
+    gain_variation : str
+        ``"frozen"``, ``"switching"`` or ``"rate:R"``.
+    delay_bounds : tuple of float
+        ``(T_l*, T_r*)``.
+    delay_margin : float
+        Largest common bound ``T* = T_l* = T_r*`` for which the whole box is certified.
+    box : GainBox
+        The box asked about.
+    polytope : GainPolytope
+        Gains inside the box offered to the safety layer; may be smaller than the box.
+    polytope_certified : bool
+        Whether ``polytope`` itself is certified (it can be when the box is not).
+    assumptions : tuple of str
+        What the verdict rests on.
+    violation : str or None
+        When not certified: the violating vertex and condition.
+    details : dict
+        Method-specific data (for the LMI, the solver's certificate as JSON-ready data).
+    """
+
+    certified: bool
+    method: str
+    gain_variation: str
+    delay_bounds: tuple[float, float]
+    delay_margin: float
+    box: GainBox
+    polytope: GainPolytope
+    polytope_certified: bool
+    assumptions: tuple[str, ...]
+    violation: str | None = None
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (what ``teleopkit certify --json`` prints)."""
+        n = self.box.n_joints
+        return {
+            "certified": self.certified,
+            "method": self.method,
+            "gain_variation": self.gain_variation,
+            "delay_bounds": list(self.delay_bounds),
+            "delay_margin": _json_float(self.delay_margin),
+            "box": self.box.to_dict(),
+            "polytope": {**self.polytope.to_dict(),
+                         "joint_vertices": [self.polytope.joint_vertices(i).tolist()
+                                            for i in range(n)]},
+            "polytope_certified": self.polytope_certified,
+            "assumptions": list(self.assumptions),
+            "violation": self.violation,
+            "details": self.details,
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON text of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation passed to :func:`json.dumps`; None for a single line.
+
+        Returns
+        -------
+        str
+            The certificate as JSON (an infinite delay margin as the string ``"inf"``).
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    @classmethod
+    def from_json(cls, text: str) -> GainCertificate:
+        """Inverse of :meth:`to_json`; raises ValueError on malformed text.
+
+        Parameters
+        ----------
+        text : str
+            JSON text as :meth:`to_json` writes it.
+
+        Returns
+        -------
+        GainCertificate
+            The certificate.
+        """
+        try:
+            data = json.loads(text)
+            ranges = data["box"]
+            box = GainBox(tuple(map(tuple, ranges["kr"])), tuple(map(tuple, ranges["br"])))
+            margin = data["delay_margin"]
+            return cls(bool(data["certified"]), str(data["method"]), str(data["gain_variation"]),
+                       tuple(data["delay_bounds"]), math.inf if margin == "inf" else float(margin),
+                       box, GainPolytope.from_dict(data["polytope"]),
+                       bool(data["polytope_certified"]), tuple(data["assumptions"]),
+                       data["violation"], dict(data["details"]))
+        except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
+            raise ValueError(f"malformed gain certificate: {error}") from None
+
+
+def _json_float(value: float) -> float | str:
+    return "inf" if value == math.inf else value

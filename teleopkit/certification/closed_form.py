@@ -1,0 +1,188 @@
+"""Closed-form delay-dependent condition of Nuño et al. for P+d teleoperators.
+
+For the nonlinear teleoperator with joint flexibility, any passive operator and environment, and
+constant gains, the P+d laws are stable for all delays ``0 <= T_l(t) <= T_l*``,
+``0 <= T_r(t) <= T_r*`` if, per joint,
+
+.. math::
+
+    4 B_l B_r > (T_l^* + T_r^*)^2 K_l K_r .
+
+With ``K_l, B_l`` fixed this is a half-plane in ``(K_r, B_r)``, so together with gain bounds the
+admissible set is a polytope. (A variant with ``T_l*^2 + T_r*^2`` circulates in the literature; it
+is unsound and not offered.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from teleopkit.certification.bounds import check_delay_bounds
+from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.classes import GainVariation
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.model.params import TeleoperatorParams
+
+__all__ = ["certify_closed_form", "nuno_delay_margin", "nuno_joint_margins", "nuno_polytope",
+           "nuno_slack", "worst_vertex"]
+
+ASSUMPTIONS = (
+    "nonlinear teleoperator with elastic remote joints (no linearisation)",
+    "any passive operator and environment",
+    "time-varying delays 0 <= T_i(t) <= T_i*, derivative unrestricted",
+    "constant (frozen) remote gains",
+)
+
+
+def _gain_products(params: TeleoperatorParams,
+                   actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``K_l K_r`` and ``B_l B_r`` of each joint for remote gains ``[K_r..., B_r...]``."""
+    n = params.n_joints
+    actions = np.asarray(actions, dtype=float)
+    return (np.array(params.local_gains.stiffness) * actions[..., :n],
+            np.array(params.local_gains.damping) * actions[..., n:])
+
+
+def nuno_slack(params: TeleoperatorParams, actions: np.ndarray, tl_max: float,
+                 tr_max: float) -> np.ndarray:
+    """Slack ``4 B_l B_r - (T_l* + T_r*)^2 K_l K_r`` of each joint (positive means satisfied).
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (local gains ``K_l, B_l``).
+    actions : ndarray, shape (..., 2 n)
+        Remote gains ``[K_r..., B_r...]``.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        Slack per joint.
+    """
+    check_delay_bounds(tl_max, tr_max)
+    stiffness, damping = _gain_products(params, actions)
+    return 4 * damping - (tl_max + tr_max) ** 2 * stiffness
+
+
+def nuno_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                  eps: float = 1e-6) -> GainPolytope:
+    """Gains of ``box`` that satisfy the closed-form condition with slack at least ``eps``.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    box : GainBox
+        User's gain ranges.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    eps : float
+        Required slack (makes the strict inequality robust to rounding).
+
+    Returns
+    -------
+    GainPolytope
+        ``box`` intersected with one half-plane per joint.
+    """
+    check_delay_bounds(tl_max, tr_max)
+    n = params.n_joints
+    kl, bl = params.local_gains.stiffness, params.local_gains.damping
+    normals = np.zeros((n, 2 * n))
+    for i in range(n):
+        normals[i, i] = (tl_max + tr_max) ** 2 * kl[i]
+        normals[i, n + i] = -4 * bl[i]
+    labels = tuple(f"Nuño joint {i + 1}: 4 B_l B_r >= (T_l*+T_r*)^2 K_l K_r" for i in range(n))
+    return GainPolytope.from_box(box).intersect(normals, np.full(n, -eps), labels)
+
+
+def nuno_joint_margins(params: TeleoperatorParams, actions: np.ndarray) -> np.ndarray:
+    """Largest common bound ``T* = T_l* = T_r*`` each joint meets at the given gains.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (local gains ``K_l, B_l``).
+    actions : ndarray, shape (..., 2 n)
+        Remote gains ``[K_r..., B_r...]``.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        ``sqrt(B_l B_r / (K_l K_r))`` per joint (``inf`` where ``K_l K_r = 0``).
+    """
+    stiffness, damping = _gain_products(params, actions)
+    with np.errstate(divide="ignore"):
+        return np.where(stiffness > 0, np.sqrt(damping / stiffness), np.inf)
+
+
+def worst_vertex(box: GainBox) -> np.ndarray:
+    """The corner of a box where the closed form is tightest: largest ``K_r``, smallest ``B_r``.
+
+    Parameters
+    ----------
+    box : GainBox
+        Gain ranges.
+
+    Returns
+    -------
+    ndarray, shape (2 n,)
+        ``[K_r,max..., B_r,min...]``.
+    """
+    return np.concatenate([box.upper[:box.n_joints], box.lower[box.n_joints:]])
+
+
+def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
+    """Largest common bound ``T* = T_l* = T_r*`` for which the whole box meets the condition.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    box : GainBox
+        Gain ranges.
+
+    Returns
+    -------
+    float
+        ``min_i sqrt(B_l B_r,min / (K_l K_r,max))`` (the supremum; ``inf`` when every ``K`` is 0).
+    """
+    return float(nuno_joint_margins(params, worst_vertex(box)).min())
+
+
+def certify_closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                        variation: GainVariation) -> GainCertificate:
+    """The closed-form certificate of a gain box (frozen gains only).
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    box : GainBox
+        Remote gain ranges.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    variation : GainVariation
+        Gain class; only ``frozen`` is covered.
+
+    Returns
+    -------
+    GainCertificate
+        Verdict at the worst vertex, the admissible polytope and the box's delay margin.
+    """
+    if variation.kind != "frozen":
+        raise ValueError("the closed form (nuno) covers frozen gains only, not "
+                         f"{variation} gains")
+    worst = worst_vertex(box)
+    slack = nuno_slack(params, worst, tl_max, tr_max)
+    certified = bool(np.all(slack > 0))
+    violation = None
+    if not certified:
+        i = int(np.argmin(slack))
+        violation = (f"joint {i + 1} at K_r = {worst[i]:g}, B_r = {worst[box.n_joints + i]:g}: "
+                     f"4 B_l B_r - (T_l*+T_r*)^2 K_l K_r = {slack[i]:.6g} <= 0")
+    return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
+                           nuno_delay_margin(params, box), box,
+                           nuno_polytope(params, box, tl_max, tr_max), True, ASSUMPTIONS,
+                           violation, {"slack": slack.tolist()})

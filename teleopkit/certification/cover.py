@@ -1,0 +1,317 @@
+"""Constant gains of a large set, certified by covering the set with cells.
+
+For frozen (constant) gains the least conservative LMI lets the functional depend on the gains,
+which needs every gain vertex as a system: ``4^n`` of them, too many for two joints (see
+:mod:`teleopkit.certification.lmi`). A set of constant gains is certified just as well by cells that
+cover it, each certified on its own. Here each cell is certified for gains *switching* inside
+it (one functional, gains as a multiplier uncertainty: a few seconds per cell), which is
+conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
+fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
+mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
+spent. The gain vertices of the set are checked alone first: a vertex that no LMI certifies
+ends the search at once.
+
+The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
+margin of the vertex that limits the closed form bounds it from above, and covers are tried at
+bounds descending geometrically from there until one certifies the whole set.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from certify import Certificate
+from teleopkit.certification.closed_form import nuno_joint_margins
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import (
+    LMI_METHOD,
+    enumerated,
+    lmi_certificate,
+    vertex_certificate,
+    vertex_delay_margin,
+)
+from teleopkit.model.params import TeleoperatorParams
+
+__all__ = ["CELL_BUDGET", "MIN_RATIO", "Cover", "CoverMargin", "cover_certificate", "cover_margin",
+           "limiting_vertex", "set_certificate"]
+
+CELL_BUDGET = 400
+"""Most cell solves :func:`cover_certificate` spends before it gives up (not certified)."""
+
+MIN_RATIO = 1.001
+"""A failing cell whose every gain range is narrower than this ratio is not split further."""
+
+
+@dataclass(frozen=True)
+class Cover:
+    """Outcome of :func:`cover_certificate`.
+
+    Parameters
+    ----------
+    certified : bool
+        Whether every constant gain of the set is certified.
+    cells : tuple of GainPolytope
+        The certified cells (their union is the set when ``certified``).
+    certificates : tuple of certify.Certificate
+        One per certified cell, then, if not certified, the certificate that failed last.
+    solves : int
+        Number of LMI solves, failed ones included.
+    reason : str
+        Why the cover is incomplete (empty when certified).
+    """
+
+    certified: bool
+    cells: tuple[GainPolytope, ...]
+    certificates: tuple[Certificate, ...]
+    solves: int
+    reason: str = ""
+
+
+def _box(lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
+    n = lower.size // 2
+    return GainPolytope.from_box(GainBox(tuple(zip(lower[:n], upper[:n], strict=True)),
+                                         tuple(zip(lower[n:], upper[n:], strict=True))))
+
+
+def _clip(polytope: GainPolytope, lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
+    box = _box(lower, upper)
+    return polytope.intersect(box.G, box.h, box.labels)
+
+
+def _ratios(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """``max / min`` of each gain range (``inf`` for a range that starts at zero)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(upper > lower, upper / lower, 1.0)
+
+
+def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Split the widest range (in ratio) at its geometric mean (midpoint from zero)."""
+    axis = int(np.argmax(_ratios(lower, upper)))
+    low, high = lower[axis], upper[axis]
+    cut = np.sqrt(low * high) if low > 0 else 0.5 * (low + high)
+    first_upper, second_lower = upper.copy(), lower.copy()
+    first_upper[axis] = second_lower[axis] = cut
+    return [(lower, first_upper), (second_lower, upper)]
+
+
+def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
+                      tr_max: float, method: str = LMI_METHOD,
+                      budget: int = CELL_BUDGET) -> Cover:
+    """Certify every constant gain of a polytope for delays up to ``(T_l*, T_r*)`` by cells.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    polytope : GainPolytope
+        Remote gains (a product of one polygon per joint), not empty.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    method : str
+        A :data:`certify.METHODS` name.
+    budget : int
+        Most LMI solves to spend (vertex checks included).
+
+    Returns
+    -------
+    Cover
+        The verdict, the certified cells and their certificates.
+
+    Raises
+    ------
+    ValueError
+        If the polytope is empty or ``budget`` is not positive.
+    """
+    if budget < 1:
+        raise ValueError(f"budget must be a positive number of solves, got {budget}")
+    corners = polytope.vertices()
+    if corners.size == 0:
+        raise ValueError("the gain set is empty: nothing to certify")
+    for action in corners:
+        cert = vertex_certificate(params, action, tl_max, tr_max, method)
+        if not cert.certified:
+            return Cover(False, (), (cert,), 1, f"the gain vertex {action.tolist()} is not "
+                                                  "certified alone")
+    solves = len(corners)
+    cells: list[GainPolytope] = []
+    certs: list[Certificate] = []
+    queue = deque([(corners.min(axis=0), corners.max(axis=0))])
+    while queue:
+        cell = _clip(polytope, *queue.popleft())
+        if cell.is_empty():
+            continue
+        if solves >= budget:
+            return Cover(False, tuple(cells), tuple(certs), solves,
+                         f"budget of {budget} solves spent with {len(queue) + 1} cells left")
+        cert = lmi_certificate(params, cell, tl_max, tr_max, "switching", method)
+        solves += 1
+        if cert.certified:
+            cells.append(cell)
+            certs.append(cert)
+            continue
+        points = cell.vertices()
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        if _ratios(lower, upper).max() < MIN_RATIO:
+            return Cover(False, tuple(cells), (*certs, cert), solves,
+                         f"the cell around {lower.tolist()} is too small to split further")
+        queue.extend(_halves(lower, upper))
+    return Cover(True, tuple(cells), tuple(certs), solves)
+
+
+def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
+                    tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
+                    budget: int = CELL_BUDGET) -> Cover:
+    """Certify a gain set the cheapest sound way: one LMI, or cells for many constant gains.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    polytope : GainPolytope
+        Remote gains, not empty.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    variation : {"frozen", "switching"}
+        Gain class. Frozen gains beyond :func:`~teleopkit.certification.lmi.enumerated` are
+        covered by cells (:func:`cover_certificate`); everything else is one LMI
+        (:func:`~teleopkit.certification.lmi.lmi_certificate`), reported as a one-cell cover.
+    method : str
+        A :data:`certify.METHODS` name.
+    budget : int
+        Most solves for a cover.
+
+    Returns
+    -------
+    Cover
+        The verdict.
+    """
+    if variation == "frozen" and not enumerated(params, polytope):
+        return cover_certificate(params, polytope, tl_max, tr_max, method, budget)
+    cert = lmi_certificate(params, polytope, tl_max, tr_max, variation, method)
+    if cert.certified:
+        return Cover(True, (polytope,), (cert,), 1)
+    return Cover(False, (), (cert,), 1, f"LMI ({method}) {cert.status}, not certified")
+
+
+@dataclass(frozen=True)
+class CoverMargin:
+    """Outcome of :func:`cover_margin`.
+
+    Parameters
+    ----------
+    margin : float
+        Largest common delay bound ``T*`` at which a cover certified every constant gain of the
+        set (the given lower bound if none did).
+    limit : float
+        Frozen LMI margin of ``vertex`` alone: no cover certifies beyond it.
+    vertex : tuple of float
+        The gain vertex with the smallest closed-form margin (where the LMI margin is usually
+        smallest too; if another vertex's is smaller, the covers fail on it at once).
+    cover : Cover or None
+        The cover at ``margin`` (``None`` if no cover was certified).
+    solves : int
+        LMI solves spent by the covers (the vertex bisections excluded).
+    """
+
+    margin: float
+    limit: float
+    vertex: tuple[float, ...]
+    cover: Cover | None
+    solves: int
+
+
+def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
+                    method: str = LMI_METHOD) -> tuple[tuple[float, ...], float]:
+    """The gain vertex with the smallest closed-form margin and its frozen LMI margin alone.
+
+    Ties (the margin is the smallest over joints) go to the vertex whose other joints' margins
+    are smallest too.
+
+    The LMI margin of any one gain bounds the margin of every set that contains it, so this is
+    an upper limit of the set's constant-gain margin (a bisection: about 35 s for two joints).
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    polytope : GainPolytope
+        Remote gains, not empty.
+    method : str
+        A :data:`certify.METHODS` name.
+
+    Returns
+    -------
+    vertex : tuple of float
+        The gains ``[K_r..., B_r...]`` of the vertex.
+    margin : float
+        Its largest certified common delay bound ``T*`` (0 if none).
+
+    Raises
+    ------
+    ValueError
+        If the polytope is empty.
+    """
+    corners = polytope.vertices()
+    if corners.size == 0:
+        raise ValueError("the gain set is empty: nothing to certify")
+    # the smallest closed-form margin, ties broken by the other joints' margins
+    ranks = np.sort(nuno_joint_margins(params, corners), axis=1)
+    worst = corners[int(np.lexsort(ranks.T[::-1])[0])]
+    return tuple(worst.tolist()), vertex_delay_margin(params, worst, method)
+
+
+def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str = LMI_METHOD,
+                 shrink: float = 0.9, attempts: int = 6, lower: float = 0.0,
+                 budget: int = CELL_BUDGET) -> CoverMargin:
+    """Largest common delay bound ``T* = T_l* = T_r*`` certified for every constant gain of a set.
+
+    The frozen LMI margin of the gain vertex that limits the closed form, alone (a bisection,
+    :func:`~teleopkit.certification.lmi.lmi_delay_margin`), gives an upper limit ``L``; covers
+    (:func:`cover_certificate`) are then tried at ``shrink L, shrink^2 L, ...`` and the first
+    certified bound is the margin.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    polytope : GainPolytope
+        Remote gains, not empty.
+    method : str
+        A :data:`certify.METHODS` name.
+    shrink : float
+        Ratio between successive bounds tried, in ``(0, 1)``: the margin found is within this
+        factor of the largest bound a cover certifies (if tried bounds are monotone).
+    attempts : int
+        Most covers tried.
+    lower : float
+        A margin already known (for example the switching-gain margin): bounds at or below it
+        are not tried, and it is returned if no cover certifies above it.
+    budget : int
+        Most solves per cover.
+
+    Returns
+    -------
+    CoverMargin
+        The margin, the vertex limit and the cover that certifies the margin.
+
+    Raises
+    ------
+    ValueError
+        If the polytope is empty or ``shrink`` or ``attempts`` are out of range.
+    """
+    if not 0.0 < shrink < 1.0 or attempts < 1:
+        raise ValueError(f"need 0 < shrink < 1 and attempts >= 1, got {shrink}, {attempts}")
+    vertex, limit = limiting_vertex(params, polytope, method)
+    solves, bound = 0, limit
+    for _ in range(attempts):
+        bound *= shrink
+        if bound <= lower:
+            break
+        cover = cover_certificate(params, polytope, bound, bound, method, budget)
+        solves += cover.solves
+        if cover.certified:
+            return CoverMargin(bound, limit, vertex, cover, solves)
+    return CoverMargin(lower, limit, vertex, None, solves)

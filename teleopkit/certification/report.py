@@ -1,0 +1,57 @@
+"""Human-readable text for certificates (the default output of ``teleopkit certify``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from teleopkit.certification.certificate import GainCertificate
+
+__all__ = ["certificate_table"]
+
+
+def _range(pair: tuple[float, float]) -> str:
+    return f"[{pair[0]:g}, {pair[1]:g}]"
+
+
+def _polygon(cert: GainCertificate, joint: int) -> str:
+    vertices = cert.polytope.joint_vertices(joint)
+    if vertices.size == 0:
+        return "empty"
+    return " ".join(f"({k:.4g}, {b:.4g})" for k, b in vertices)
+
+
+def certificate_table(results: Sequence[GainCertificate]) -> str:
+    """Format one or more certificates of the same question as aligned text.
+
+    Parameters
+    ----------
+    results : sequence of GainCertificate
+        Certificates (for example one per method).
+
+    Returns
+    -------
+    str
+        A block of text: the question once, then verdict, margin, admissible set, violation and
+        assumptions per certificate.
+    """
+    first = results[0]
+    box = first.box
+    lines = [
+        f"delay bounds      T_l* = {first.delay_bounds[0]:g} s, T_r* = {first.delay_bounds[1]:g} s",
+        *(f"gain box joint {i + 1}  K_r in {_range(box.kr[i])}, B_r in {_range(box.br[i])}"
+          for i in range(box.n_joints)),
+    ]
+    for cert in results:
+        verdict = "CERTIFIED" if cert.certified else "NOT CERTIFIED"
+        lines += ["", f"[{cert.method}] {verdict} for {cert.gain_variation} gains",
+                  f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"]
+        if "margin_limit" in cert.details:
+            limit, vertex = cert.details["margin_limit"], cert.details["margin_limit_vertex"]
+            lines.append(f"  margin limit    {limit:.4g} s (certified at the gain vertex {vertex} "
+                         "alone)")
+        label = "admissible" if cert.polytope_certified else "uncertified"
+        lines += [f"  {f'{label} j{i + 1}':<16}{_polygon(cert, i)}" for i in range(box.n_joints)]
+        if cert.violation:
+            lines.append(f"  violation       {cert.violation}")
+        lines += [f"  assumes         {text}" for text in cert.assumptions]
+    return "\n".join(lines)

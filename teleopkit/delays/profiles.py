@@ -1,0 +1,487 @@
+"""Time-varying communication delay profiles.
+
+A profile is a frozen dataclass with a declared upper bound ``bound`` (seconds) and a method
+``sample(t)`` returning the delay at the times ``t`` for each scenario of a batch: shape ``(S, B)``,
+where ``B`` is the profile's own batch size (1 when it is the same for every scenario, and then it
+broadcasts). ``sample`` checks that every value lies in ``[0, bound]`` and is finite, so a profile
+can never exceed the bound that the certificate and the channel buffers were sized for.
+
+Profiles: :class:`FourierDelay` (the paper's Fig. 3), :class:`ConstantDelay`,
+:class:`SinusoidalDelay`, :class:`SwitchingDelay` (bounded random, including fast adversarial
+switching between the extremes) and :class:`TraceDelay` (a recorded trace, e.g. from CSV).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal, Protocol
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "PAPER_DELAY_MAX",
+    "ConstantDelay",
+    "DelayProfile",
+    "FourierDelay",
+    "SinusoidalDelay",
+    "SwitchingDelay",
+    "TraceDelay",
+    "check_delays",
+    "declared_bound",
+]
+
+PAPER_C0 = 0.9613462407597305
+PAPER_F0 = 0.24299065416927243
+PAPER_SIN = np.array([
+    -0.02000659, -0.02349457, 0.00067474, 0.00159032, 0.00129016, -0.00135477, -0.00022001,
+    0.00097632, 0.00021585, 0.00014519, -0.00020833, -0.00056968, -0.00031181, 0.00016964,
+    0.0003376, -0.00022124,
+])
+PAPER_COS = np.array([
+    -0.02556397, 0.00393168, -0.0052079, 0.00220769, 0.00300956, 0.00160663, -0.00018929,
+    -0.00031848, -0.00019025, -0.00022222, -0.00010147, 0.00019351, -0.00030343, 0.0001225,
+    0.00015061, 0.00039704,
+])
+
+
+def _paper_shape(t: np.ndarray) -> np.ndarray:
+    """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``.
+
+    The harmonics come from the angle-addition recurrence, two trigonometric evaluations per time
+    instead of two per harmonic; equal to the direct sum to about ``1e-15`` s.
+    """
+    c1, s1 = np.cos(2.0 * np.pi * PAPER_F0 * t), np.sin(2.0 * np.pi * PAPER_F0 * t)
+    ck, sk = c1, s1
+    out = np.full(t.shape, PAPER_C0)
+    for a, b in zip(PAPER_SIN, PAPER_COS, strict=True):
+        out += a * sk + b * ck
+        ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
+    return out
+
+
+def _paper_maximum(points: int = 20001) -> float:
+    """Rigorous upper bound of ``y(t)``: grid maximum plus slope bound times half the spacing."""
+    t = np.linspace(0.0, 1.0 / PAPER_F0, points)
+    harmonics = np.arange(1, PAPER_SIN.size + 1)
+    slope = 2.0 * np.pi * PAPER_F0 * float(harmonics @ (np.abs(PAPER_SIN) + np.abs(PAPER_COS)))
+    return float(_paper_shape(t).max()) + slope * (t[1] - t[0]) / 2.0
+
+
+PAPER_DELAY_MAX: float = _paper_maximum()
+"""Upper bound of the paper's unscaled profile, about 1.0003 s (slightly above 1 s)."""
+
+
+class DelayProfile(Protocol):
+    """What the simulator needs from a delay profile."""
+
+    @property
+    def bound(self) -> float:
+        """Declared upper bound in seconds."""
+        ...
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time for each of the profile's ``B`` scenarios (``B = 1``
+            when the profile is the same for every scenario), within ``[0, bound]``.
+        """
+        ...
+
+
+def _per_scenario(name: str, value: float | np.ndarray) -> np.ndarray:
+    """Return ``value`` as a finite 1-D array (one entry per scenario)."""
+    array = np.atleast_1d(np.asarray(value, dtype=float))
+    if array.ndim != 1 or array.size == 0:
+        raise ValueError(f"{name} must be a number or a 1-D array, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite, got {array}")
+    return array
+
+
+def check_delays(kind: str, values: np.ndarray, bound: float) -> np.ndarray:
+    """Return ``values`` if every one is finite and in ``[0, bound]``, else raise ValueError.
+
+    The one check every delay profile applies to what it produces.
+
+    Parameters
+    ----------
+    kind : str
+        Name of the profile, for the message.
+    values : ndarray
+        Delays in seconds.
+    bound : float
+        The profile's declared upper bound in seconds.
+
+    Returns
+    -------
+    ndarray
+        ``values`` unchanged.
+
+    Raises
+    ------
+    ValueError
+        One line naming the profile and the offending value.
+    """
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{kind} produced a non-finite delay")
+    low, high = float(values.min(initial=0.0)), float(values.max(initial=0.0))
+    if low < 0.0:
+        raise ValueError(f"{kind} produced a negative delay ({low:.6g} s)")
+    if high > bound:
+        raise ValueError(f"{kind} reaches {high:.6g} s, above its declared bound {bound:.6g} s")
+    return values
+
+
+def declared_bound(values: np.ndarray, bound: float) -> float:
+    """A profile's bound: ``bound`` as given, or the largest value when ``bound`` is NaN.
+
+    Parameters
+    ----------
+    values : ndarray
+        The profile's delays in seconds.
+    bound : float
+        The declared bound, or NaN for none.
+
+    Returns
+    -------
+    float
+        The bound in seconds.
+    """
+    return float(np.max(values)) if math.isnan(bound) else float(bound)
+
+
+def _times(t: np.ndarray) -> np.ndarray:
+    return np.atleast_1d(np.asarray(t, dtype=float))
+
+
+@dataclass(frozen=True)
+class FourierDelay:
+    """The paper's delay ``T(t) = scale * y(t)``, ``y`` the 16-harmonic Fourier series of Fig. 3.
+
+    Parameters
+    ----------
+    scale : float or ndarray, shape (B,)
+        Per-scenario scale (the paper draws ``g_m, g_s ~ U[0.5, 1]`` per episode).
+    bound : float, optional
+        Declared bound; defaults to ``max(scale) * PAPER_DELAY_MAX``.
+    """
+
+    scale: float | np.ndarray = 1.0
+    bound: float = math.nan
+
+    def __post_init__(self) -> None:
+        scale = _per_scenario("delay scale", self.scale)
+        if np.any(scale < 0):
+            raise ValueError(f"delay scale must be non-negative, got {scale}")
+        object.__setattr__(self, "scale", scale)
+        if math.isnan(self.bound):
+            object.__setattr__(self, "bound", float(scale.max()) * PAPER_DELAY_MAX)
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``scale``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        shape = _paper_shape(_times(t))
+        scale = np.asarray(self.scale)
+        # The shape is positive and the scales non-negative, so the extremes of the products are
+        # those of the extreme shape values: checking two rows checks every value.
+        extremes = np.multiply.outer([shape.min(), shape.max()], scale)
+        check_delays(type(self).__name__, extremes, self.bound)
+        return np.multiply.outer(shape, scale)
+
+
+@dataclass(frozen=True)
+class ConstantDelay:
+    """A constant delay (per scenario).
+
+    Parameters
+    ----------
+    value : float or ndarray, shape (B,)
+        Delay in seconds.
+    bound : float, optional
+        Declared bound; defaults to ``max(value)``.
+    """
+
+    value: float | np.ndarray = 0.5
+    bound: float = math.nan
+
+    def __post_init__(self) -> None:
+        value = _per_scenario("constant delay", self.value)
+        if np.any(value < 0):
+            raise ValueError(f"constant delay must be non-negative, got {value}")
+        object.__setattr__(self, "value", value)
+        object.__setattr__(self, "bound", declared_bound(value, self.bound))
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``value``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        values = np.broadcast_to(np.asarray(self.value), (_times(t).size, np.size(self.value)))
+        return check_delays(type(self).__name__, np.array(values), self.bound)
+
+
+@dataclass(frozen=True)
+class SinusoidalDelay:
+    """``T(t) = mean + amplitude sin(2 pi frequency t + phase)``.
+
+    Parameters
+    ----------
+    mean, amplitude : float
+        Mean and amplitude in seconds (``amplitude <= mean``).
+    frequency : float
+        Frequency in Hz.
+    phase : float or ndarray, shape (B,)
+        Phase in radians, per scenario.
+    """
+
+    mean: float = 0.5
+    amplitude: float = 0.4
+    frequency: float = 0.5
+    phase: float | np.ndarray = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.amplitude <= self.mean or not math.isfinite(self.mean):
+            raise ValueError(f"sinusoidal delay needs 0 <= amplitude <= mean, got mean "
+                             f"{self.mean}, amplitude {self.amplitude}")
+        if not math.isfinite(self.frequency) or self.frequency < 0:
+            raise ValueError(f"sinusoidal delay frequency must be >= 0, got {self.frequency}")
+        object.__setattr__(self, "phase", _per_scenario("delay phase", self.phase))
+
+    @property
+    def bound(self) -> float:
+        """Declared upper bound ``mean + amplitude``."""
+        return self.mean + self.amplitude
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per entry of ``phase``.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        angle = 2.0 * np.pi * self.frequency * _times(t)[:, None] + np.asarray(self.phase)
+        values = self.mean + self.amplitude * np.sin(angle)
+        return check_delays(type(self).__name__, values, self.bound)
+
+
+def _uniform_hash(seed: int, index: np.ndarray, stream: np.ndarray) -> np.ndarray:
+    """Counter-based uniforms in [0, 1): the SplitMix64 finaliser of ``(seed, index, stream)``."""
+    with np.errstate(over="ignore"):
+        z = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
+             + index.astype(np.uint64) * np.uint64(0xBF58476D1CE4E5B9)
+             + stream.astype(np.uint64) * np.uint64(0x94D049BB133111EB))
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(float) / float(2**53)
+
+
+@dataclass(frozen=True)
+class SwitchingDelay:
+    """Bounded random delay, piecewise constant over intervals of length ``dwell``.
+
+    Each interval holds a value drawn uniformly from ``[low, high]`` (``mode="uniform"``) or one of
+    the two extremes (``mode="extremes"``, the adversarial bang-bang case; with ``dwell`` equal to
+    the control period it switches as fast as the loop runs). Values come from a counter-based hash
+    of ``(seed, interval, scenario)``, so any time can be sampled in any order, reproducibly.
+
+    Parameters
+    ----------
+    low, high : float
+        Range of the delay in seconds.
+    dwell : float
+        Length of each constant interval in seconds.
+    mode : {"uniform", "extremes"}
+        Distribution of the values.
+    seed : int
+        Seed of the sequence.
+    batch : int
+        Number of independent scenarios.
+    """
+
+    low: float = 0.0
+    high: float = 1.0
+    dwell: float = 0.01
+    mode: Literal["uniform", "extremes"] = "uniform"
+    seed: int = 0
+    batch: int = 1
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.high) and 0 <= self.low <= self.high):
+            raise ValueError(f"switching delay needs 0 <= low <= high, got {self.low}, {self.high}")
+        if not math.isfinite(self.dwell) or self.dwell <= 0:
+            raise ValueError(f"switching delay dwell must be positive, got {self.dwell}")
+        if self.mode not in ("uniform", "extremes"):
+            raise ValueError(f"switching delay mode must be 'uniform' or 'extremes', got "
+                             f"{self.mode!r}")
+        if self.batch < 1:
+            raise ValueError(f"switching delay batch must be >= 1, got {self.batch}")
+
+    @property
+    def bound(self) -> float:
+        """Declared upper bound ``high``."""
+        return self.high
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per scenario (``B = batch``).
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        interval = np.floor(_times(t) / self.dwell + 1e-9).astype(np.int64)
+        u = _uniform_hash(self.seed, interval[:, None], np.arange(self.batch)[None, :])
+        if self.mode == "extremes":
+            u = np.round(u)
+        return check_delays(type(self).__name__, self.low + (self.high - self.low) * u, self.bound)
+
+
+@dataclass(frozen=True)
+class TraceDelay:
+    """A recorded delay trace, linearly interpolated and held constant after its last sample.
+
+    Parameters
+    ----------
+    times : ndarray, shape (N,)
+        Strictly increasing sample times in seconds.
+    delays : ndarray, shape (N,)
+        Delay at each sample time in seconds.
+    bound : float, optional
+        Declared bound; defaults to the trace's maximum.
+    """
+
+    times: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
+    delays: np.ndarray = field(default_factory=lambda: np.array([0.5, 0.5]))
+    bound: float = math.nan
+
+    def __post_init__(self) -> None:
+        times = np.asarray(self.times, dtype=float)
+        delays = np.asarray(self.delays, dtype=float)
+        if times.ndim != 1 or times.shape != delays.shape or times.size < 2:
+            raise ValueError("delay trace needs two equal-length columns with at least 2 rows")
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(delays))):
+            raise ValueError("delay trace contains non-finite values")
+        if np.any(np.diff(times) <= 0):
+            raise ValueError("delay trace times must be strictly increasing")
+        if np.any(delays < 0):
+            raise ValueError(f"delay trace has a negative delay ({delays.min():.6g} s)")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "delays", delays)
+        object.__setattr__(self, "bound", declared_bound(delays, self.bound))
+
+    @classmethod
+    def from_csv(cls, path: str | Path, time_column: str = "t",
+                 delay_column: str = "delay", bound: float = math.nan) -> TraceDelay:
+        """Read a trace from a CSV file with a time and a delay column (seconds).
+
+        Parameters
+        ----------
+        path : str or Path
+            CSV file.
+        time_column, delay_column : str
+            Column names; when absent, the first two columns are used.
+        bound : float, optional
+            Declared bound; defaults to the trace's maximum.
+
+        Returns
+        -------
+        TraceDelay
+            The trace.
+        """
+        try:
+            table = pd.read_csv(path)
+        except (OSError, ValueError, pd.errors.ParserError) as error:
+            raise ValueError(f"cannot read delay trace {path}: {error}") from None
+        if {time_column, delay_column} <= set(table.columns):
+            columns = [time_column, delay_column]
+        elif table.shape[1] >= 2:
+            columns = list(table.columns[:2])
+        else:
+            raise ValueError(f"delay trace {path} needs a time and a delay column")
+        try:
+            times, delays = (table[c].to_numpy(dtype=float) for c in columns)
+        except ValueError:
+            raise ValueError(f"delay trace {path} has non-numeric values") from None
+        return cls(times, delays, bound)
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, 1)
+            Delay in seconds at each time, one column shared by every scenario.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        values = np.interp(_times(t), self.times, self.delays)[:, None]
+        return check_delays(type(self).__name__, values, self.bound)

@@ -1,0 +1,183 @@
+"""Rigid-body dynamics of planar serial arms with point masses at the link ends (numpy, batched).
+
+With absolute link angles ``phi = T q`` (``T`` lower-triangular ones) the inertia is
+``M_abs[i, j] = a_ij cos(phi_i - phi_j)`` with ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``, and
+``M(q) = T^T M_abs T``. The Coriolis matrix ``C = T^T C_abs T`` with
+``C_abs[i, j] = a_ij sin(phi_i - phi_j) phi_j'`` makes ``M' - 2C`` skew-symmetric. For two links
+this is the paper's ``M11 = l2^2 m2 + l1^2 (m1 + m2) + 2 l1 l2 m2 cos q2`` and
+``C = beta sin q2 [[-q2', -(q1' + q2')], [q1', 0]]`` with ``beta = l1 l2 m2``.
+
+All functions accept any leading batch axes: ``q`` has shape ``(..., n)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from teleopkit.model.params import ElasticJoints, PlanarArm
+
+__all__ = [
+    "coriolis_matrix",
+    "inertia_coefficients",
+    "kinetic_energy",
+    "mass_from_cosines",
+    "mass_matrix",
+    "mass_matrix_derivative",
+    "remote_energy",
+]
+
+
+def inertia_coefficients(arm: PlanarArm) -> np.ndarray:
+    """Return the inertia coefficients ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        Symmetric coefficients ``a_ij`` in kg m^2 (``M_abs[i, j] = a_ij cos(phi_i - phi_j)``).
+    """
+    lengths = np.array(arm.lengths)
+    outboard = np.cumsum(np.array(arm.masses)[::-1])[::-1]
+    index = np.arange(arm.n_joints)
+    return np.outer(lengths, lengths) * outboard[np.maximum.outer(index, index)]
+
+
+def _absolute(q: np.ndarray) -> np.ndarray:
+    return np.cumsum(q, axis=-1)
+
+
+def _to_joint(matrix_abs: np.ndarray) -> np.ndarray:
+    """Map ``X_abs`` to ``T^T X_abs T`` (suffix sums over both axes)."""
+    suffix_rows = np.flip(np.cumsum(np.flip(matrix_abs, -2), -2), -2)
+    return np.flip(np.cumsum(np.flip(suffix_rows, -1), -1), -1)
+
+
+def mass_matrix(arm: PlanarArm, q: np.ndarray) -> np.ndarray:
+    """Inertia matrix ``M(q)``.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q : ndarray, shape (..., n)
+        Joint angles.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        Symmetric positive definite inertia matrix.
+    """
+    phi = _absolute(np.asarray(q, dtype=float))
+    return mass_from_cosines(arm, np.cos(phi[..., :, None] - phi[..., None, :]))
+
+
+def mass_from_cosines(arm: PlanarArm, cosines: np.ndarray) -> np.ndarray:
+    """Inertia matrix from the cosines ``cos(phi_i - phi_j)`` of the relative link angles.
+
+    ``M`` is affine in these cosines, which is what makes inertia polytopes exact.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    cosines : ndarray, shape (..., n, n)
+        Symmetric matrix of cosines with ones on the diagonal.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        The inertia matrix.
+    """
+    return _to_joint(inertia_coefficients(arm) * cosines)
+
+
+def coriolis_matrix(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Coriolis and centrifugal matrix ``C(q, q')`` with ``M' - 2C`` skew-symmetric.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q, dq : ndarray, shape (..., n)
+        Joint angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        The matrix ``C``; the Coriolis torque is ``C @ dq``.
+    """
+    phi = _absolute(np.asarray(q, dtype=float))
+    dphi = _absolute(np.asarray(dq, dtype=float))
+    diff = phi[..., :, None] - phi[..., None, :]
+    return _to_joint(inertia_coefficients(arm) * np.sin(diff) * dphi[..., None, :])
+
+
+def mass_matrix_derivative(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Time derivative ``dM/dt`` of the inertia matrix along the motion ``(q, q')``.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q, dq : ndarray, shape (..., n)
+        Joint angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        The symmetric matrix ``M'``; ``M' - 2C`` is skew-symmetric (:func:`coriolis_matrix`).
+    """
+    phi = _absolute(np.asarray(q, dtype=float))
+    dphi = _absolute(np.asarray(dq, dtype=float))
+    diff = phi[..., :, None] - phi[..., None, :]
+    ddiff = dphi[..., :, None] - dphi[..., None, :]
+    return _to_joint(-inertia_coefficients(arm) * np.sin(diff) * ddiff)
+
+
+def kinetic_energy(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Kinetic energy ``q'^T M(q) q' / 2`` of the arm.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Arm geometry and masses.
+    q, dq : ndarray, shape (..., n)
+        Joint angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Kinetic energy in joules.
+    """
+    dq = np.asarray(dq, dtype=float)
+    return 0.5 * np.einsum("...i,...ij,...j->...", dq, mass_matrix(arm, q), dq)
+
+
+def remote_energy(arm: PlanarArm, joints: ElasticJoints, q: np.ndarray, dq: np.ndarray,
+                  theta: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
+    """Stored energy of the elastic remote arm: link and rotor kinetic energy plus spring energy.
+
+    Parameters
+    ----------
+    arm : PlanarArm
+        Link side of the remote arm.
+    joints : ElasticJoints
+        Joint stiffness and rotor inertia.
+    q, dq : ndarray, shape (..., n)
+        Link angles and velocities.
+    theta, dtheta : ndarray, shape (..., n)
+        Motor angles and velocities.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``q'^T M q' / 2 + theta'^T J theta' / 2 + (q - theta)^T S (q - theta) / 2``.
+    """
+    stretch = np.asarray(q) - np.asarray(theta)
+    rotor = 0.5 * np.sum(np.array(joints.rotor_inertia) * np.asarray(dtheta) ** 2, axis=-1)
+    spring = 0.5 * np.sum(np.array(joints.stiffness) * stretch**2, axis=-1)
+    return kinetic_energy(arm, q, dq) + rotor + spring

@@ -1,0 +1,198 @@
+"""Fixed-gain baselines: the paper's gains and the best static gains inside the certified set.
+
+The honest comparison for a gain tuner is not only the paper's fixed gains
+``K_r = 10, B_r = 30`` but the best *constant* gains the same safety layer allows.
+:func:`best_static_gains` finds them by minimising the paper's cost (the episode's negative
+return under the environment's reward weights, :func:`static_cost`) over training scenarios: a
+coarse grid of uniform gains (the same on every joint) projected onto the set, then Nelder–Mead
+over all ``2 n`` gains from the best grid point. Nelder–Mead moves a free point ``x`` and the
+cost is evaluated at its projection ``P(x)``, so every candidate, and the answer ``P(x*)``, lies
+in the certified set.
+
+Constant gains need no agent in the loop, so costs come straight from one batched
+:class:`~teleopkit.sim.simulator.Simulator` run per candidate: the same numbers as stepping the
+environment (see ``tests/test_evaluation.py``), at a fraction of the cost.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from teleopkit.certification.analysis import default_certificate
+from teleopkit.delays.profiles import FourierDelay
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.safety.layer import SafetyLayer
+from teleopkit.sim.scenarios import Scenario, paper_scenarios
+from teleopkit.sim.simulator import Simulator
+
+__all__ = [
+    "BASELINE_SEED",
+    "FIXED_GAINS",
+    "StaticGains",
+    "best_static_gains",
+    "fixed_gains",
+    "static_cost",
+]
+
+FIXED_GAINS = (10.0, 30.0)
+"""The paper's fixed remote gains ``(K_r, B_r)`` on every joint."""
+
+BASELINE_SEED = 20_251_130
+"""Default seed of the training scenarios of :func:`best_static_gains`."""
+
+
+def fixed_gains(kr: float = FIXED_GAINS[0], br: float = FIXED_GAINS[1],
+                n_joints: int = 2) -> np.ndarray:
+    """Uniform gains as an action vector ``[K_r..., B_r...]``.
+
+    Parameters
+    ----------
+    kr, br : float
+        Gains of every joint.
+    n_joints : int
+        Number of joints.
+
+    Returns
+    -------
+    ndarray, shape (2 n,)
+        The action.
+    """
+    return np.concatenate([np.full(n_joints, float(kr)), np.full(n_joints, float(br))])
+
+
+def _repeat(scenario: Scenario, times: int) -> Scenario:
+    """The scenarios of ``scenario`` repeated ``times`` times (one copy per candidate)."""
+    def delay(profile: object) -> FourierDelay:
+        if not isinstance(profile, FourierDelay):
+            raise ValueError("static costs need the paper's Fourier delays")
+        return FourierDelay(np.tile(np.atleast_1d(profile.scale), times), profile.bound)
+
+    return Scenario(scenario.params, delay(scenario.forward), delay(scenario.backward),
+                    np.tile(scenario.reference_gains, (times, 1)))
+
+
+def static_cost(gains: np.ndarray, scenario: Scenario,
+                config: FlexTeleopConfig | None = None) -> np.ndarray:
+    """The paper's cost of constant gains: minus the episode return, per candidate and scenario.
+
+    Parameters
+    ----------
+    gains : ndarray, shape (C, 2 n) or (2 n,)
+        Candidate gains (applied as given: project them first).
+    scenario : Scenario
+        ``S`` scenarios with the paper's Fourier delays.
+    config : FlexTeleopConfig, optional
+        Episode length, periods, integration step and reward weights (defaults if omitted).
+
+    Returns
+    -------
+    ndarray, shape (C, S)
+        ``sum_k alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2`` over the episode
+        (``inf`` where the state leaves the environment's ``state_bound``).
+    """
+    config = config if config is not None else FlexTeleopConfig(params=scenario.params)
+    gains = np.atleast_2d(np.asarray(gains, dtype=float))
+    count, batch = gains.shape[0], scenario.batch
+    sim = Simulator(_repeat(scenario, count), config.dt, config.control_period)
+    run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0),
+                  chunk=config.max_steps * config.control_period)
+    reward = config.weights.reward(run.e_track[1:], run.e_damp[1:], run.gains[1:])
+    cost = -reward.sum(axis=0)
+    failed = ~np.all(np.abs(run.state) <= config.state_bound, axis=(0, 2))
+    return np.where(failed, np.inf, cost).reshape(count, batch)
+
+
+@dataclass(frozen=True)
+class StaticGains:
+    """Result of :func:`best_static_gains`.
+
+    Attributes
+    ----------
+    gains : ndarray, shape (2 n,)
+        The best certified constant gains found.
+    cost : float
+        Their mean cost over the training scenarios.
+    grid_best : ndarray, shape (2 n,)
+        Best (projected) grid point, where Nelder–Mead started.
+    grid_cost : float
+        Its mean cost.
+    evaluations : int
+        Candidates simulated (grid and Nelder–Mead).
+    """
+
+    gains: np.ndarray
+    cost: float
+    grid_best: np.ndarray
+    grid_cost: float
+    evaluations: int
+
+
+def _grid(layer: SafetyLayer, lower: np.ndarray, upper: np.ndarray, points: int) -> np.ndarray:
+    """Uniform gains on a ``points x points`` grid of the box, projected, duplicates removed."""
+    n = layer.dimension // 2
+    k = np.linspace(lower[0], upper[0], points)
+    b = np.linspace(lower[n], upper[n], points)
+    kk, bb = (x.ravel() for x in np.meshgrid(k, b))
+    raw = np.column_stack([np.repeat(kk[:, None], n, 1), np.repeat(bb[:, None], n, 1)])
+    return np.unique(layer.project_batch(raw).action.round(12), axis=0)
+
+
+def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
+                      seed: int = BASELINE_SEED, grid_points: int = 8, max_evaluations: int = 200,
+                      config: FlexTeleopConfig | None = None) -> StaticGains:
+    """Best constant gains inside the safety layer's set for the paper's cost.
+
+    Parameters
+    ----------
+    layer : SafetyLayer, optional
+        The set; the environment's default certificate if omitted.
+    scenarios : int
+        Training scenarios (:func:`~teleopkit.sim.scenarios.paper_scenarios` of ``seed``).
+    seed : int
+        Seed of the training scenarios (keep it apart from evaluation seeds).
+    grid_points : int
+        Grid resolution per gain (uniform gains on every joint).
+    max_evaluations : int
+        Budget of Nelder–Mead cost evaluations.
+    config : FlexTeleopConfig, optional
+        Environment settings (episode length, reward weights, ...).
+
+    Returns
+    -------
+    StaticGains
+        Gains, cost, grid optimum and number of simulated candidates.
+    """
+    from scipy.optimize import minimize  # deferred: a 0.7 s import
+
+    config = config if config is not None else FlexTeleopConfig()
+    certificate = config.certificate or default_certificate(config.params)
+    if layer is None:
+        layer = SafetyLayer.from_certificate(certificate, config.control_period)
+    box = certificate.box
+    scenario = paper_scenarios(seed, scenarios, config.params)
+    candidates = _grid(layer, box.lower, box.upper, grid_points)
+    grid_costs = static_cost(candidates, scenario, config).mean(axis=1)
+    start = candidates[int(np.argmin(grid_costs))]
+
+    def objective(x: np.ndarray) -> float:
+        value = static_cost(layer.project(x).action, scenario, config).mean()
+        return float(value) if math.isfinite(value) else 1e300
+
+    result = minimize(objective, start, method="Nelder-Mead",
+                      options={"maxfev": max_evaluations, "xatol": 1e-2, "fatol": 1e-3,
+                               "initial_simplex": _simplex(start)})
+    gains = layer.project(result.x).action
+    cost = float(result.fun)
+    if cost > grid_costs.min():  # never worse than the grid
+        gains, cost = start, float(grid_costs.min())
+    return StaticGains(gains, cost, start, float(grid_costs.min()),
+                       len(candidates) + int(result.nfev))
+
+
+def _simplex(start: np.ndarray) -> np.ndarray:
+    """Initial Nelder–Mead simplex: ``start`` and steps of 20 % (at least 0.5) per gain."""
+    steps = np.maximum(0.2 * np.abs(start), 0.5)
+    return np.vstack([start, start + np.diag(steps)])

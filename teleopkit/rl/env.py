@@ -1,0 +1,535 @@
+"""Gymnasium environments for certified-safe tuning of the remote gains.
+
+:class:`FlexTeleopEnv` (registered as ``teleopkit/FlexTeleop-v0``) is one teleoperator;
+:class:`FlexTeleopVectorEnv` runs ``B`` of them in one batched :class:`~teleopkit.Simulator` with
+one batched safety projection, for fast experience collection.
+
+Per control period (10 ms by default) the agent proposes remote gains
+``a = [K_r^1..K_r^n, B_r^1..B_r^n]``; every action passes through the
+:class:`~teleopkit.safety.SafetyLayer` of the environment's certificate before it reaches the
+simulator (:class:`~teleopkit.safety.CertifiedLoop`), and the environment counts applied actions
+outside the certified set (:attr:`FlexTeleopEnv.unsafe_actions`, which must stay 0).
+
+Observation (``7 n`` values, the paper's Section III with the damping error written
+``theta_r - q_r``; the paper's eq. 6 has a typo) at the end of each period::
+
+    [theta_r, theta_r', q_l(t - T_l), e_track, int e_track, e_damp, int e_damp]
+
+with ``e_track = theta_r - q_l(t - T_l)`` and ``e_damp = theta_r - q_r``. At ``t = 0`` the delayed
+signal is the constant past ``q_l(0)``.
+
+Each episode draws a scenario with :func:`~teleopkit.sim.scenarios.paper_scenarios` from the
+environment's seeded generator (operator reference gains and delay scales). The time limit is a
+truncation; a non-finite state or one leaving ``state_bound`` terminates with ``-failure_penalty``
+(which should never happen with certified gains).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, NamedTuple
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certificate import GainCertificate
+from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.rl.registration import ENV_ID
+from teleopkit.safety.layer import SafetyLayer
+from teleopkit.safety.loop import CertifiedLoop
+from teleopkit.sim.scenarios import Scenario, paper_scenarios
+from teleopkit.sim.simulator import Simulator
+from teleopkit.sim.state import StateLayout
+from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
+from teleopkit.sim.trajectory import StepResult
+
+__all__ = [
+    "ENV_ID",
+    "OBSERVATION",
+    "BatchStep",
+    "FlexTeleopConfig",
+    "FlexTeleopEnv",
+    "FlexTeleopVectorEnv",
+    "RewardWeights",
+    "TeleopBatch",
+    "observation",
+]
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the reward ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
+
+    The defaults make the three terms equal on average under the paper's fixed gains
+    ``K_r = 10, B_r = 30`` on the paper scenario (16 scenarios of 40 s, seed 0), so each is about a
+    third of the reward and the reward is about -3 per step there. Measured per-step means:
+    ``||e_track||^2 = 0.0635 rad^2``, ``||e_damp||^2 = 1.29e-4 rad^2`` and ``||a||^2 = 2000``,
+    hence ``alpha = 16 ~ 1/0.0635``, ``beta = 8000 ~ 1/1.29e-4`` and ``gamma = 5e-4 = 1/2000``.
+    The damping error is concentrated in the first seconds (the initial deflection
+    ``q_r(0) != theta_r(0)`` rings down; afterwards it is about 1e-8 rad^2), the tracking error
+    follows the operator's decaying motion, and the gain term prices stiff, heavily damped
+    settings (``||a||^2`` ranges from about 15 to 50 000 over the default box).
+
+    Parameters
+    ----------
+    alpha : float
+        Weight of the squared tracking error ``theta_r - q_l(t - T_l)``.
+    beta : float
+        Weight of the squared damping error ``theta_r - q_r``.
+    gamma : float
+        Weight of the squared applied gains.
+    """
+
+    alpha: float = 16.0
+    beta: float = 8000.0
+    gamma: float = 5e-4
+
+    def __post_init__(self) -> None:
+        for name in ("alpha", "beta", "gamma"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"reward weight {name} must be finite and >= 0, got {value}")
+
+    def reward(self, e_track: np.ndarray, e_damp: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """Reward of each scenario.
+
+        Parameters
+        ----------
+        e_track : ndarray, shape (..., n)
+            Tracking error.
+        e_damp : ndarray, shape (..., n)
+            Damping error.
+        action : ndarray, shape (..., 2 n)
+            Applied gains.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
+        """
+        return -(self.alpha * np.sum(e_track**2, axis=-1) + self.beta * np.sum(e_damp**2, axis=-1)
+                 + self.gamma * np.sum(action**2, axis=-1))
+
+
+@dataclass(frozen=True)
+class FlexTeleopConfig:
+    """Settings shared by :class:`FlexTeleopEnv` and :class:`FlexTeleopVectorEnv`.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (the paper's by default).
+    certificate : GainCertificate, optional
+        Certificate whose polytope the safety layer projects onto; it must be for ``params``.
+        Default: :func:`default_certificate` of ``params`` (closed form, ``T* = 1 s``).
+    episode_length : float
+        Episode duration in seconds (truncation), rounded to whole control periods.
+    control_period : float
+        Gain hold period (agent sample time) in seconds.
+    dt : float
+        Integration step in seconds.
+    weights : RewardWeights
+        Reward weights.
+    state_bound : float
+        Largest admissible absolute value of any state entry before termination.
+    failure_penalty : float
+        Reward ``-failure_penalty`` on termination: an order of magnitude beyond the discounted
+        return of a whole episode at discount 0.99 (about -3000 under ``K_r = 10, B_r = 30``,
+        mostly the opening transient; -7500 at the stiffest corner ``K_r = 50, B_r = 150``), so
+        ending an episode never pays.
+    """
+
+    params: TeleoperatorParams = field(default_factory=paper_setup)
+    certificate: GainCertificate | None = None
+    episode_length: float = 40.0
+    control_period: float = CONTROL_PERIOD
+    dt: float = DEFAULT_DT
+    weights: RewardWeights = field(default_factory=RewardWeights)
+    state_bound: float = 1e3
+    failure_penalty: float = 1e5
+
+    def __post_init__(self) -> None:
+        for name in ("episode_length", "control_period", "dt", "state_bound", "failure_penalty"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be positive and finite, got {value}")
+        if round(self.episode_length / self.control_period) < 1:
+            raise ValueError("the episode must last at least one control period")
+
+    @property
+    def max_steps(self) -> int:
+        """Control periods per episode."""
+        return round(self.episode_length / self.control_period)
+
+
+def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:
+    """``config`` (default settings if None) with the given fields replaced."""
+    return replace(config if config is not None else FlexTeleopConfig(), **overrides)
+
+
+OBSERVATION = ("theta", "dtheta", "ql_delayed", "e_track", "int_e_track", "e_damp",
+               "int_e_damp")
+"""Blocks of an observation (``n`` values each), in order."""
+
+
+def observation(state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
+    """The paper's observation of a batch of simulator states (the agent's input).
+
+    Parameters
+    ----------
+    state : ndarray, shape (B, 8 n)
+        Simulator states (:class:`~teleopkit.sim.state.StateLayout`).
+    delayed_ql : ndarray, shape (B, n)
+        Local positions as received by the remote side, ``q_l(t - T_l(t))``.
+
+    Returns
+    -------
+    ndarray, shape (B, 7 n)
+        The blocks of :data:`OBSERVATION`: ``[theta, theta', q_l(t - T_l),
+        theta - q_l(t - T_l), int e_track, theta - q_r, int e_damp]``.
+    """
+    layout = StateLayout.of(state)
+    theta = layout.get(state, "theta")
+    return np.concatenate([theta, layout.get(state, "dtheta"), delayed_ql, theta - delayed_ql,
+                           layout.get(state, "int_track"), theta - layout.get(state, "qr"),
+                           layout.get(state, "int_damp")], axis=-1)
+
+
+class BatchStep(NamedTuple):
+    """One control period of a :class:`TeleopBatch`.
+
+    Attributes
+    ----------
+    obs : ndarray, shape (B, 7 n)
+        Observations at the end of the period.
+    reward : ndarray, shape (B,)
+        Rewards (``-failure_penalty`` where a run failed).
+    terminated : ndarray of bool, shape (B,)
+        Runs whose state became non-finite or left ``state_bound``.
+    truncated : ndarray of bool, shape (B,)
+        Runs that reached the episode length.
+    info : dict of str to ndarray
+        Projection report (see :class:`FlexTeleopEnv`).
+    result : StepResult
+        The simulated period.
+    """
+
+    obs: np.ndarray
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    info: dict[str, np.ndarray]
+    result: StepResult
+
+
+class TeleopBatch:
+    """Safety projection, simulation, observation and reward for a batch of ``B`` scenarios.
+
+    The core of both environments and of closed-loop evaluation; all of its arrays carry the
+    batch axis first.
+
+    Parameters
+    ----------
+    config : FlexTeleopConfig
+        Settings (the certificate defaults to the closed form's for ``config.params``).
+    batch : int
+        Number of scenarios.
+    """
+
+    def __init__(self, config: FlexTeleopConfig, batch: int) -> None:
+        self.config = config
+        self.batch = batch
+        self.certificate = (config.certificate if config.certificate is not None
+                            else default_certificate(config.params))
+        self.loop = CertifiedLoop(SafetyLayer.from_certificate(self.certificate,
+                                                               config.control_period))
+        self.steps = 0
+
+    @property
+    def layer(self) -> SafetyLayer:
+        """The safety layer every action passes through."""
+        return self.loop.layer
+
+    @property
+    def unsafe_actions(self) -> int:
+        """Applied actions outside the certified set so far (must stay 0)."""
+        return self.loop.unsafe_actions
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """Start on ``B`` scenarios drawn with the paper's randomisation; first observations.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the operator reference gains and delay scales.
+
+        Returns
+        -------
+        ndarray, shape (B, 7 n)
+            Observations at ``t = 0``.
+        """
+        return self.start(paper_scenarios(rng, self.batch, self.config.params))
+
+    def start(self, scenario: Scenario) -> np.ndarray:
+        """Start an episode on ``scenario`` and return the first observations.
+
+        Parameters
+        ----------
+        scenario : Scenario
+            ``B`` scenarios of the configured teleoperator.
+
+        Returns
+        -------
+        ndarray, shape (B, 7 n)
+            Observations at ``t = 0`` (the delayed signal is the constant past ``q_l(0)``).
+        """
+        if scenario.batch != self.batch:
+            raise ValueError(f"scenario has {scenario.batch} runs, the batch {self.batch}")
+        state = self.loop.start(Simulator(scenario, self.config.dt, self.config.control_period))
+        self.steps = 0
+        return observation(state, StateLayout.of(state).get(state, "ql"))
+
+    def step(self, raw: np.ndarray) -> BatchStep:
+        """Project, simulate and score one period.
+
+        Parameters
+        ----------
+        raw : ndarray, shape (B, 2 n)
+            Raw gains (any values, NaN and inf included).
+
+        Returns
+        -------
+        BatchStep
+            Observations, rewards, terminations, truncations, info and the simulated period.
+        """
+        raw = np.array(raw, dtype=np.float64).reshape(self.batch, -1)
+        result, projection = self.loop.step(raw)
+        applied = projection.action
+        self.steps += 1
+        state = result.state[0]
+        obs = observation(state, result.delayed[0, :, 0])
+        reward = self.config.weights.reward(result.e_track[0], result.e_damp[0], applied)
+        bound = self.config.state_bound
+        failed = ~np.all(np.abs(state) <= bound, axis=1)
+        if failed.any():
+            reward = np.where(failed, -self.config.failure_penalty, reward)
+            obs = np.clip(np.nan_to_num(obs), -bound, bound)
+        truncated = np.full(self.batch, self.steps >= self.config.max_steps) & ~failed
+        info = {"raw_action": raw, "applied_action": applied,
+                "projection_distance": projection.distance,
+                "fallback": projection.fallback != 0, "fallback_flags": projection.fallback,
+                "active_constraints": projection.active, "time": np.full(self.batch, result.t[0]),
+                "delays": result.delays[0]}
+        return BatchStep(obs, reward, failed, truncated, info, result)
+
+
+def _spaces(config: FlexTeleopConfig,
+            certificate: GainCertificate) -> tuple[spaces.Box, spaces.Box]:
+    """Action space (the certificate's gain box) and observation space of one scenario.
+
+    Every observation entry is a state entry or the difference of two, and the episode ends
+    once a state entry exceeds ``state_bound``, so observations lie within twice that bound.
+    """
+    box = certificate.box
+    limit = 2 * config.state_bound
+    action = spaces.Box(box.lower, box.upper, dtype=np.float64)
+    observation = spaces.Box(-limit, limit, shape=(7 * box.n_joints,), dtype=np.float64)
+    return action, observation
+
+
+class FlexTeleopEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+    """One teleoperator whose remote gains an agent retunes every control period.
+
+    Create it with ``gymnasium.make("teleopkit/FlexTeleop-v0", episode_length=2.0)`` (after
+    ``import teleopkit``) or directly. Keyword arguments override fields of ``config``.
+
+    Parameters
+    ----------
+    config : FlexTeleopConfig, optional
+        Settings; the defaults of :class:`FlexTeleopConfig` if omitted.
+    **overrides
+        Fields of :class:`FlexTeleopConfig` to replace (for example ``episode_length=2.0``).
+
+    Attributes
+    ----------
+    safety_layer : SafetyLayer
+        Projection onto the certificate's polytope applied to every action.
+    certificate : GainCertificate
+        The certificate in force.
+
+    Notes
+    -----
+    ``step`` returns ``info`` with ``raw_action``, ``applied_action``, ``projection_distance``,
+    ``fallback`` (bool), ``fallback_flags`` (:class:`~teleopkit.safety.Fallback`),
+    ``active_constraints`` (mask over the polytope's rows; labels via
+    ``safety_layer.active_labels``), ``time`` and ``delays``. The previous applied action is the
+    centre of a rate-bounded certificate's rate box and the fallback for non-finite actions.
+    """
+
+    def __init__(self, config: FlexTeleopConfig | None = None, **overrides: Any) -> None:
+        super().__init__()
+        self.config = _config(config, overrides)
+        self._core = TeleopBatch(self.config, 1)
+        self.safety_layer = self._core.layer
+        self.certificate = self._core.certificate
+        self.action_space, self.observation_space = _spaces(self.config, self.certificate)
+
+    @property
+    def unsafe_actions(self) -> int:
+        """Applied actions outside the certified set since construction (must stay 0)."""
+        return self._core.unsafe_actions
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode with a freshly drawn scenario.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the environment's generator (scenario draws).
+        options : dict, optional
+            Unused.
+
+        Returns
+        -------
+        observation : ndarray, shape (7 n,)
+            Observation at ``t = 0``.
+        info : dict
+            Empty.
+        """
+        super().reset(seed=seed)
+        return self._core.draw(self.np_random)[0], {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Project the action, simulate one control period and score it.
+
+        Parameters
+        ----------
+        action : ndarray, shape (2 n,)
+            Raw gains ``[K_r..., B_r...]`` (any values, NaN and inf included).
+
+        Returns
+        -------
+        observation : ndarray, shape (7 n,)
+            Observation at the end of the period.
+        reward : float
+            See :class:`RewardWeights` (``-failure_penalty`` on termination).
+        terminated : bool
+            The state became non-finite or left ``state_bound``.
+        truncated : bool
+            The episode reached ``episode_length``.
+        info : dict
+            Projection report (see the class notes).
+        """
+        obs, reward, terminated, truncated, info, _ = self._core.step(action)
+        return (obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
+                {key: value[0] for key, value in info.items()})
+
+
+class FlexTeleopVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
+    """``num_envs`` teleoperators simulated together (one batched simulator and projection).
+
+    All sub-environments share the clock, so their episodes start and end together: at the time
+    limit all are truncated; if one terminates (a failure, which should never happen with
+    certified gains) the others are truncated at the same step. Autoreset follows Gymnasium's
+    next-step mode: the step after the end ignores the actions and returns the first
+    observations of new scenarios with zero reward.
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of scenarios ``B``.
+    config : FlexTeleopConfig, optional
+        Settings; the defaults of :class:`FlexTeleopConfig` if omitted.
+    **overrides
+        Fields of :class:`FlexTeleopConfig` to replace.
+
+    Attributes
+    ----------
+    safety_layer : SafetyLayer
+        Projection onto the certificate's polytope applied to every action.
+    certificate : GainCertificate
+        The certificate in force.
+    """
+
+    def __init__(self, num_envs: int = 8, config: FlexTeleopConfig | None = None,
+                 **overrides: Any) -> None:
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
+        self.metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+        self.num_envs = num_envs
+        self.config = _config(config, overrides)
+        self._core = TeleopBatch(self.config, num_envs)
+        self.safety_layer = self._core.layer
+        self.certificate = self._core.certificate
+        single_action, single_observation = _spaces(self.config, self.certificate)
+        self.single_action_space, self.single_observation_space = single_action, single_observation
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self._ended = False
+
+    @property
+    def unsafe_actions(self) -> int:
+        """Applied actions outside the certified set since construction (must stay 0)."""
+        return self._core.unsafe_actions
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start new episodes in every sub-environment.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the generator that draws all scenarios.
+        options : dict, optional
+            Unused.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 7 n)
+            Observations at ``t = 0``.
+        info : dict
+            Empty.
+        """
+        super().reset(seed=seed)
+        self._ended = False
+        return self._core.draw(self.np_random), {}
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                 dict[str, Any]]:
+        """Step every sub-environment (or autoreset them all after the episodes ended).
+
+        Parameters
+        ----------
+        actions : ndarray, shape (num_envs, 2 n)
+            Raw gains of each sub-environment.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 7 n)
+            Observations.
+        rewards : ndarray, shape (num_envs,)
+            Rewards (0 on an autoreset step).
+        terminations : ndarray of bool, shape (num_envs,)
+            Failures.
+        truncations : ndarray of bool, shape (num_envs,)
+            Episode ends by time limit (or by another sub-environment's failure).
+        info : dict
+            Batched projection report (see :class:`FlexTeleopEnv`), each key with its ``_key``
+            mask; empty on an autoreset step.
+        """
+        if self._ended:
+            self._ended = False
+            none = np.zeros(self.num_envs, dtype=bool)
+            return self._core.draw(self.np_random), np.zeros(self.num_envs), none, none, {}
+        obs, reward, terminated, truncated, info, _ = self._core.step(actions)
+        if terminated.any() or truncated.any():
+            truncated = ~terminated
+            self._ended = True
+        masks = {f"_{key}": np.ones(self.num_envs, dtype=bool) for key in info}
+        return obs, reward, terminated, truncated, {**info, **masks}

@@ -1,0 +1,309 @@
+"""Held-out evaluation of gain controllers: TD3 policies against fixed and best static gains.
+
+Every controller is run in closed loop through the core of the environments
+(:class:`~teleopkit.rl.env.TeleopBatch`), so every applied action goes through the same safety
+layer and is counted if it lies outside the certified set (``unsafe_actions``, which must be 0).
+The scenarios are drawn by :func:`~teleopkit.sim.scenarios.paper_scenarios` from the evaluation
+seed: operator reference gains and delay scales that training never saw (training draws its
+scenarios from generators seeded by :class:`~teleopkit.rl.training.TrainConfig`, the static-gain
+search from :data:`~teleopkit.rl.baselines.BASELINE_SEED`).
+
+Per scenario: RMS and IAE (and maxima) of the tracking error ``theta_r - q_l(t - T_l)`` and the
+damping error ``theta_r - q_r`` (Euclidean norm over joints, from ``t = 0``), the paper's cost
+(minus the episode return under the environment's reward weights), the mean applied gains and the
+mean projection distance. :func:`summarise` reduces them per controller to the mean and standard
+deviation over scenarios; a controller given as several policies (for example one per training
+seed) also gets the standard deviation of the per-policy means (``seed_std``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from gymnasium.utils import seeding
+
+from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
+from teleopkit.sim.trajectory import Trajectory
+
+__all__ = [
+    "EVAL_SEED",
+    "SUMMARY_METRICS",
+    "ConstantGains",
+    "Controller",
+    "Rollout",
+    "evaluate",
+    "rollout",
+    "save_report",
+    "summarise",
+    "to_markdown",
+]
+
+EVAL_SEED = 7_777
+"""Default seed of the held-out evaluation scenarios."""
+
+Controller = Callable[[np.ndarray], np.ndarray]
+"""Maps observations ``(B, 7 n)`` to raw gains ``(B, 2 n)`` (the environment projects them)."""
+
+
+@dataclass(frozen=True)
+class ConstantGains:
+    """A controller that always asks for the same gains.
+
+    Parameters
+    ----------
+    gains : ndarray, shape (2 n,)
+        ``[K_r..., B_r...]``.
+    """
+
+    gains: np.ndarray
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The gains, once per observation row."""
+        return np.tile(np.asarray(self.gains, dtype=float), (len(obs), 1))
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """A closed-loop run of ``B`` scenarios over ``P`` control periods.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        The simulated run from ``t = 0`` (states, delayed signals, delays, applied gains).
+    obs : ndarray, shape (P + 1, B, 7 n)
+        Observations (row 0 at ``t = 0``).
+    raw : ndarray, shape (P, B, 2 n)
+        Gains the controller asked for.
+    reward : ndarray, shape (P, B)
+        Rewards.
+    unsafe_actions : int
+        Applied actions outside the certified set (must be 0).
+    """
+
+    trajectory: Trajectory
+    obs: np.ndarray
+    raw: np.ndarray
+    reward: np.ndarray
+    unsafe_actions: int
+
+    @property
+    def t(self) -> np.ndarray:
+        """Times, shape ``(P + 1,)``, from 0."""
+        return self.trajectory.t
+
+    @property
+    def applied(self) -> np.ndarray:
+        """Applied (certified) gains of each period, shape ``(P, B, 2 n)``."""
+        return self.trajectory.gains[1:]
+
+    def metrics(self) -> pd.DataFrame:
+        """Per-scenario errors, cost, mean gains and projection distance."""
+        table = self.trajectory.metrics()
+        table["cost"] = -self.reward.sum(axis=0)
+        n = self.applied.shape[-1] // 2
+        for i in range(n):
+            table[f"mean_Kr_{i + 1}"] = self.applied[:, :, i].mean(axis=0)
+            table[f"mean_Br_{i + 1}"] = self.applied[:, :, n + i].mean(axis=0)
+        table["projection_distance"] = np.linalg.norm(self.raw - self.applied, axis=-1).mean(0)
+        table["unsafe_actions"] = self.unsafe_actions
+        return table
+
+    def to_frame(self, scenario: int = 0) -> pd.DataFrame:
+        """One scenario as a table (the columns the paper figures need).
+
+        Parameters
+        ----------
+        scenario : int
+            Index of the scenario in the batch.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns of :meth:`~teleopkit.sim.trajectory.Trajectory.to_frame` (row 0 holds
+            the first period's gains) plus ``Kr_raw_i, Br_raw_i``, the gains asked for.
+        """
+        frame = self.trajectory.to_frame(scenario)
+        raw = np.concatenate([self.raw[:1], self.raw])[:, scenario]
+        n = raw.shape[-1] // 2
+        for i in range(n):
+            frame[f"Kr_raw_{i + 1}"] = raw[:, i]
+            frame[f"Br_raw_{i + 1}"] = raw[:, n + i]
+        return frame
+
+
+def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
+            config: FlexTeleopConfig | None = None) -> Rollout:
+    """Run a controller on ``scenarios`` held-out scenarios for one episode.
+
+    The scenarios are those :class:`~teleopkit.rl.env.FlexTeleopVectorEnv` draws after
+    ``reset(seed=seed)``, and every action passes through the same safety layer.
+
+    Parameters
+    ----------
+    controller : Controller
+        Observations to raw gains (for example a :class:`~teleopkit.rl.policy.GainPolicy`).
+    scenarios : int
+        Number of scenarios, simulated together.
+    seed : int
+        Seed of the scenario draws (the same seed gives the same scenarios to every controller).
+    config : FlexTeleopConfig, optional
+        Environment settings.
+
+    Returns
+    -------
+    Rollout
+        The run.
+    """
+    core = TeleopBatch(config if config is not None else FlexTeleopConfig(), scenarios)
+    obs = core.draw(seeding.np_random(seed)[0])
+    records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": []}
+    parts, applied = [core.loop.simulator.initial_record()], []
+    for _ in range(core.config.max_steps):
+        step = core.step(np.asarray(controller(obs), dtype=float))
+        if step.terminated.any():
+            raise RuntimeError("a certified controller left the state bound (a model failure)")
+        obs = step.obs
+        parts.append(step.result)
+        applied.append(step.info["applied_action"])
+        for key, value in (("obs", obs), ("raw", step.info["raw_action"]),
+                           ("reward", step.reward)):
+            records[key].append(value)
+    arrays = {key: np.stack(value) for key, value in records.items()}
+    trajectory = Trajectory.join(parts, np.stack(applied))
+    return Rollout(trajectory, unsafe_actions=core.unsafe_actions, **arrays)
+
+
+def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scenarios: int = 32,
+             seed: int = EVAL_SEED, config: FlexTeleopConfig | None = None) -> pd.DataFrame:
+    """Per-scenario metrics of every controller on the same held-out scenarios.
+
+    Parameters
+    ----------
+    controllers : mapping of str to Controller or sequence of Controller
+        Named controllers; a sequence is several policies of one kind (e.g. training seeds).
+    scenarios : int
+        Scenarios per controller.
+    seed : int
+        Evaluation seed.
+    config : FlexTeleopConfig, optional
+        Environment settings.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (controller, policy, scenario) with the columns of :meth:`Rollout.metrics`.
+    """
+    frames = []
+    for name, entry in controllers.items():
+        policies = list(entry) if isinstance(entry, Sequence) else [entry]
+        for index, policy in enumerate(policies):
+            table = rollout(policy, scenarios, seed, config).metrics().reset_index()
+            table.insert(0, "policy", index)
+            table.insert(0, "controller", name)
+            frames.append(table)
+    return pd.concat(frames, ignore_index=True)
+
+
+SUMMARY_METRICS = ("cost", "rms_track", "iae_track", "rms_damp", "iae_damp")
+"""Metrics reported by :func:`summarise`."""
+
+
+def summarise(per_scenario: pd.DataFrame,
+              metrics: Sequence[str] = SUMMARY_METRICS) -> pd.DataFrame:
+    """Mean and standard deviations per controller.
+
+    Parameters
+    ----------
+    per_scenario : pandas.DataFrame
+        Output of :func:`evaluate`.
+    metrics : sequence of str
+        Columns to summarise.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by controller (in input order): ``<metric>_mean``, ``<metric>_std`` (over all
+        scenarios and policies), ``<metric>_seed_std`` (over the per-policy means; NaN for one
+        policy), plus ``policies``, ``scenarios`` and the total ``unsafe_actions``.
+    """
+    order = list(dict.fromkeys(per_scenario["controller"]))
+    grouped = per_scenario.groupby("controller", sort=False)
+    per_policy = per_scenario.groupby(["controller", "policy"], sort=False)[list(metrics)].mean()
+    columns: dict[str, pd.Series] = {}
+    for metric in metrics:
+        columns[f"{metric}_mean"] = grouped[metric].mean()
+        columns[f"{metric}_std"] = grouped[metric].std(ddof=1)
+        columns[f"{metric}_seed_std"] = per_policy[metric].groupby(level=0, sort=False).std(ddof=1)
+    columns["policies"] = grouped["policy"].nunique()
+    columns["scenarios"] = grouped["scenario"].nunique()
+    unsafe = per_scenario.drop_duplicates(["controller", "policy"])
+    columns["unsafe_actions"] = unsafe.groupby("controller", sort=False)["unsafe_actions"].sum()
+    return pd.DataFrame(columns).loc[order]
+
+
+def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = SUMMARY_METRICS,
+                baseline: str | None = None) -> str:
+    """A markdown table of ``mean ± std`` per controller (no extra dependency).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Output of :func:`summarise`.
+    metrics : sequence of str
+        Metrics to show.
+    baseline : str, optional
+        Controller whose mean cost the others are compared with (a ``cost vs <baseline>``
+        column in percent).
+
+    Returns
+    -------
+    str
+        The table.
+    """
+    header = ["controller", *metrics]
+    if baseline is not None:
+        header.append(f"cost vs {baseline}")
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    for name, row in summary.iterrows():
+        cells = [str(name)]
+        for metric in metrics:
+            cell = f"{row[f'{metric}_mean']:.4g} ± {row[f'{metric}_std']:.2g}"
+            if row["policies"] > 1:
+                cell += f" (seeds ± {row[f'{metric}_seed_std']:.2g})"
+            cells.append(cell)
+        if baseline is not None:
+            change = row["cost_mean"] / summary.loc[baseline, "cost_mean"] - 1
+            cells.append(f"{100 * change:+.1f} %")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
+                baseline: str | None = None) -> pd.DataFrame:
+    """Write ``per_scenario.csv``, ``summary.csv`` and ``summary.md`` to ``out_dir``.
+
+    Parameters
+    ----------
+    per_scenario : pandas.DataFrame
+        Output of :func:`evaluate`.
+    out_dir : str or Path
+        Directory (created if needed).
+    baseline : str, optional
+        Controller the markdown table compares costs with.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The summary.
+    """
+    directory = Path(out_dir)
+    directory.mkdir(parents=True, exist_ok=True)
+    summary = summarise(per_scenario)
+    per_scenario.to_csv(directory / "per_scenario.csv", index=False)
+    summary.to_csv(directory / "summary.csv")
+    (directory / "summary.md").write_text(to_markdown(summary, baseline=baseline))
+    return summary

@@ -1,0 +1,180 @@
+"""The paper's networks: an actor with a softplus output over the action box, and a critic.
+
+The actor maps observations to raw gains ``low + (high - low) softplus(z) / (2 ln 2)`` (``z = 0``
+is the centre of the action box); the critic has a state path and an action path merged into a
+scalar. Both standardise their inputs with fixed statistics, and every weight is drawn from a
+generator the caller owns (the global RNG is never touched).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+__all__ = ["Actor", "Critic", "Standardise"]
+
+_LN2 = math.log(2.0)
+
+
+def _mlp(sizes: tuple[int, ...], generator: torch.Generator) -> list[nn.Module]:
+    """Linear layers of the given widths with ReLU between them (none after the last)."""
+    layers: list[nn.Module] = []
+    for i, (fan_in, fan_out) in enumerate(itertools.pairwise(sizes)):
+        layers.append(_linear(fan_in, fan_out, generator))
+        if i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+    return layers
+
+
+def _linear(fan_in: int, fan_out: int, generator: torch.Generator,
+            bound: float | None = None) -> nn.Linear:
+    """A linear layer initialised from ``generator``: PyTorch's default, or ``U(-bound, bound)``.
+
+    PyTorch's own initialisation draws from the global RNG; this one is seeded by the agent
+    (and the global RNG is left alone: the layer is built uninitialised).
+    """
+    layer = nn.utils.skip_init(nn.Linear, fan_in, fan_out)
+    limit = 1.0 / math.sqrt(fan_in) if bound is None else bound
+    with torch.no_grad():
+        layer.weight.uniform_(-limit, limit, generator=generator)
+        layer.bias.uniform_(-limit, limit, generator=generator)
+    return layer
+
+
+class Standardise(nn.Module):
+    """Fixed affine input map ``(x - mean) / std`` (buffers: saved, never trained).
+
+    Parameters
+    ----------
+    dim : int
+        Input size; the statistics start at mean 0 and standard deviation 1.
+    """
+
+    mean: torch.Tensor
+    std: torch.Tensor
+
+    def __init__(self, dim: int) -> None:
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(dim))
+        self.register_buffer("std", torch.ones(dim))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Standardise ``x``.
+
+        Parameters
+        ----------
+        x : torch.Tensor, shape (B, dim)
+            Inputs.
+
+        Returns
+        -------
+        torch.Tensor, shape (B, dim)
+            ``(x - mean) / std``.
+        """
+        return (x - self.mean) / self.std
+
+
+class Actor(nn.Module):
+    """Deterministic policy ``obs -> raw gains``: ``obs_dim``-128-64-``act_dim``, softplus output.
+
+    Parameters
+    ----------
+    obs_dim : int
+        Observation size (14 for two joints).
+    low, high : ndarray, shape (act_dim,)
+        The action box the output must cover (see the module notes for the map).
+    generator : torch.Generator
+        Source of the initial weights.
+    hidden : tuple of int
+        Hidden widths.
+    """
+
+    low: torch.Tensor
+    span: torch.Tensor
+
+    def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
+                 generator: torch.Generator, hidden: tuple[int, ...] = (128, 64)) -> None:
+        super().__init__()
+        act_dim = len(low)
+        self.normalise = Standardise(obs_dim)
+        body = _mlp((obs_dim, *hidden), generator)
+        self.body = nn.Sequential(*body, nn.ReLU())
+        # A small last layer starts every output near the centre of the box (DDPG's 3e-3).
+        self.head = _linear(hidden[-1], act_dim, generator, bound=3e-3)
+        self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))
+        self.register_buffer("span", torch.as_tensor((high - low) / (2 * _LN2),
+                                                     dtype=torch.float32))
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """Raw gains ``low + (high - low) softplus(z) / (2 ln 2)``, shape ``(B, act_dim)``.
+
+        Parameters
+        ----------
+        obs : torch.Tensor, shape (B, obs_dim)
+            Observations.
+
+        Returns
+        -------
+        torch.Tensor, shape (B, act_dim)
+            Raw (unprojected) gains.
+        """
+        z = self.head(self.body(self.normalise(obs)))
+        return self.low + self.span * F.softplus(z)
+
+
+class Critic(nn.Module):
+    """Q-network: a state path (128-64) and an action path (64) concatenated into 60-36-1.
+
+    Parameters
+    ----------
+    obs_dim, act_dim : int
+        Observation and action sizes.
+    low, high : ndarray, shape (act_dim,)
+        Action box; actions are rescaled to ``[-1, 1]`` over it on input.
+    generator : torch.Generator
+        Source of the initial weights.
+    hidden_state, hidden_action, hidden_merged : tuple of int
+        Widths of the state path, the action path and the merged layers (before the scalar
+        output).
+    """
+
+    centre: torch.Tensor
+    half_span: torch.Tensor
+
+    def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
+                 generator: torch.Generator, hidden_state: tuple[int, ...] = (128, 64),
+                 hidden_action: tuple[int, ...] = (64,),
+                 hidden_merged: tuple[int, ...] = (60, 36)) -> None:
+        super().__init__()
+        self.normalise = Standardise(obs_dim)
+        self.register_buffer("centre", torch.as_tensor((high + low) / 2, dtype=torch.float32))
+        self.register_buffer("half_span", torch.as_tensor((high - low) / 2, dtype=torch.float32))
+        self.state_path = nn.Sequential(*_mlp((obs_dim, *hidden_state), generator))
+        self.action_path = nn.Sequential(*_mlp((len(low), *hidden_action), generator))
+        merged_in = hidden_state[-1] + hidden_action[-1]
+        self.merged = nn.Sequential(nn.ReLU(),
+                                    *_mlp((merged_in, *hidden_merged, 1), generator))
+
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        """``Q(obs, action)``, shape ``(B,)``.
+
+        Parameters
+        ----------
+        obs : torch.Tensor, shape (B, obs_dim)
+            Observations.
+        action : torch.Tensor, shape (B, act_dim)
+            Gains.
+
+        Returns
+        -------
+        torch.Tensor, shape (B,)
+            Action values.
+        """
+        s = self.state_path(self.normalise(obs))
+        a = self.action_path((action - self.centre) / self.half_span)
+        return self.merged(torch.cat([s, a], dim=-1)).squeeze(-1)

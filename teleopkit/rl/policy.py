@@ -1,0 +1,141 @@
+"""A trained actor as plain numpy: fast single-sample inference, small ``.npz`` files, no torch.
+
+:class:`GainPolicy` is what deployment, evaluation and campaigns run; :meth:`GainPolicy.pretrained`
+loads the policy shipped in ``teleopkit/data``.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from teleopkit.rl.networks import Actor
+
+__all__ = ["PRETRAINED", "GainPolicy"]
+
+PRETRAINED = "td3_policy.npz"
+"""File name of the shipped pretrained policy in ``teleopkit/data``."""
+
+
+class GainPolicy:
+    """A trained actor as plain numpy arrays: fast single-sample inference, small ``.npz`` files.
+
+    Parameters
+    ----------
+    weights : sequence of (ndarray, ndarray)
+        ``(W, b)`` of each linear layer, ``W`` of shape ``(out, in)``.
+    obs_mean, obs_std : ndarray, shape (obs_dim,)
+        Observation standardisation.
+    low, span : ndarray, shape (act_dim,)
+        Output map ``low + span * softplus(z)``.
+    metadata : dict, optional
+        JSON-serialisable information (training settings, baselines, ...).
+    """
+
+    def __init__(self, weights: list[tuple[np.ndarray, np.ndarray]], obs_mean: np.ndarray,
+                 obs_std: np.ndarray, low: np.ndarray, span: np.ndarray,
+                 metadata: dict[str, Any] | None = None) -> None:
+        self.weights = [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
+                        for w, b in weights]
+        self.obs_mean = np.asarray(obs_mean, dtype=np.float64)
+        self.obs_std = np.asarray(obs_std, dtype=np.float64)
+        self.low = np.asarray(low, dtype=np.float64)
+        self.span = np.asarray(span, dtype=np.float64)
+        self.metadata = dict(metadata or {})
+
+    @classmethod
+    def from_actor(cls, actor: Actor, metadata: dict[str, Any] | None = None) -> GainPolicy:
+        """Copy an :class:`Actor`'s weights and maps.
+
+        Parameters
+        ----------
+        actor : Actor
+            Trained actor.
+        metadata : dict, optional
+            JSON-ready data stored with the policy (for example the training recipe).
+
+        Returns
+        -------
+        GainPolicy
+            The numpy policy.
+        """
+        from torch import nn
+
+        linears = [m for m in actor.modules() if isinstance(m, nn.Linear)]
+        weights = [(m.weight.detach().numpy().copy(), m.bias.detach().numpy().copy())
+                   for m in linears]
+        return cls(weights, actor.normalise.mean.numpy(), actor.normalise.std.numpy(),
+                   actor.low.numpy(), actor.span.numpy(), metadata)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Raw gains for one observation ``(obs_dim,)`` or a batch ``(B, obs_dim)``."""
+        x = (np.asarray(obs, dtype=np.float64) - self.obs_mean) / self.obs_std
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(self.weights):
+            x = x @ w.T + b
+            if i < last:
+                np.maximum(x, 0.0, out=x)
+        return self.low + self.span * np.logaddexp(0.0, x)
+
+    def save(self, path: str | Path) -> None:
+        """Write an ``.npz`` file (no pickled objects).
+
+        Parameters
+        ----------
+        path : str or Path
+            Destination file.
+        """
+        arrays: dict[str, Any] = {"obs_mean": self.obs_mean, "obs_std": self.obs_std,
+                                         "low": self.low, "span": self.span,
+                                         "metadata": np.array(json.dumps(self.metadata))}
+        for i, (w, b) in enumerate(self.weights):
+            arrays[f"w{i}"], arrays[f"b{i}"] = w.astype(np.float32), b.astype(np.float32)
+        with open(path, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+
+    @classmethod
+    def load(cls, path: str | Path) -> GainPolicy:
+        """Read a file written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or Path
+            ``.npz`` file.
+
+        Returns
+        -------
+        GainPolicy
+            The policy.
+
+        Raises
+        ------
+        ValueError
+            If the file is not a policy file.
+        """
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                layers = sum(1 for key in data.files if key.startswith("w"))
+                weights = [(data[f"w{i}"], data[f"b{i}"]) for i in range(layers)]
+                metadata = json.loads(str(data["metadata"]))
+                return cls(weights, data["obs_mean"], data["obs_std"], data["low"],
+                           data["span"], metadata)
+        except (KeyError, ValueError, EOFError, zipfile.BadZipFile) as error:
+            raise ValueError(f"{path} is not a teleopkit policy file ({error})") from None
+
+    @classmethod
+    def pretrained(cls) -> GainPolicy:
+        """The small policy shipped in ``teleopkit/data`` (``examples/train_pretrained.py``)."""
+        from importlib import resources
+
+        with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED) as path:
+            return cls.load(path)
+
+    @property
+    def action_dim(self) -> int:
+        """Number of gains produced."""
+        return self.low.size

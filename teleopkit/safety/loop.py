@@ -1,0 +1,91 @@
+"""The certified control loop: every gain is projected by the safety layer, then simulated.
+
+This is the one place where remote gains reach the plant. The environments, the evaluation and
+the campaigns step through a :class:`CertifiedLoop`, which also counts applied actions outside
+the certified set (:attr:`CertifiedLoop.unsafe_actions`, which must stay 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from teleopkit.safety.layer import Projection, SafetyLayer
+from teleopkit.sim.simulator import Simulator
+from teleopkit.sim.trajectory import StepResult
+
+__all__ = ["CertifiedLoop"]
+
+
+class CertifiedLoop:
+    """Project raw gains onto the certified set, then simulate one control period with them.
+
+    Parameters
+    ----------
+    layer : SafetyLayer
+        The projection every action passes through.
+
+    Attributes
+    ----------
+    unsafe_actions : int
+        Applied actions outside the certified set since construction (must stay 0).
+    unsafe_by_run : ndarray of int, shape (B,)
+        The same count per scenario of the current episode.
+    """
+
+    def __init__(self, layer: SafetyLayer) -> None:
+        self.layer = layer
+        self.unsafe_actions = 0
+        self.unsafe_by_run = np.zeros(0, dtype=np.int64)
+        self._simulator: Simulator | None = None
+        self._applied: np.ndarray | None = None
+
+    @property
+    def simulator(self) -> Simulator:
+        """The simulator of the current episode."""
+        if self._simulator is None:
+            raise RuntimeError("call start() before stepping the loop")
+        return self._simulator
+
+    def start(self, simulator: Simulator) -> np.ndarray:
+        """Begin an episode on ``simulator`` (reset to ``t = 0``); return its initial states.
+
+        Parameters
+        ----------
+        simulator : Simulator
+            The batch of scenarios to run.
+
+        Returns
+        -------
+        ndarray, shape (B, 8 n)
+            The states at ``t = 0``.
+        """
+        simulator.reset()
+        self._simulator = simulator
+        self._applied = None
+        self.unsafe_by_run = np.zeros(simulator.batch, dtype=np.int64)
+        return simulator.state
+
+    def step(self, raw: np.ndarray) -> tuple[StepResult, Projection]:
+        """Project ``raw`` and simulate one control period with the applied gains.
+
+        Parameters
+        ----------
+        raw : ndarray, shape (B, 2 n)
+            Gains the controller asks for (any values, NaN and inf included).
+
+        Returns
+        -------
+        result : StepResult
+            The period simulated with the applied gains.
+        projection : Projection
+            What the safety layer did; ``projection.action`` are the applied gains.
+        """
+        simulator = self.simulator
+        raw = np.asarray(raw, dtype=np.float64).reshape(simulator.batch, -1)
+        projection = self.layer.project_batch(raw, self._applied)
+        applied = projection.action
+        unsafe = ~self.layer.contains(applied)
+        self.unsafe_by_run += unsafe
+        self.unsafe_actions += int(np.count_nonzero(unsafe))
+        self._applied = applied
+        return simulator.advance(applied), projection

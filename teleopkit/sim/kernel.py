@@ -1,0 +1,460 @@
+"""Compiled (numba) integrator of the teleoperator: fixed-step RK4 with delayed Hermite read-out.
+
+It implements, for any number of joints, exactly the model of :mod:`teleopkit.model.dynamics`,
+:mod:`teleopkit.model.laws` and :mod:`teleopkit.delays.history`; the readable
+:mod:`teleopkit.sim.numpy_integrator` is what the tests compare it with. States follow
+:class:`teleopkit.sim.state.StateLayout` (``8 n`` values per scenario; the kernel addresses its
+blocks by constant offsets, which the comparison with the numpy integrator checks).
+
+Layout for speed (measured reasons in ``benchmarks/README.md``):
+
+- The batch is cut into blocks of :data:`LANES` scenarios, integrated in parallel (``prange``).
+  Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and the two-link
+  derivative is computed by a loop over lanes without calls or branches (the sine and cosine are
+  an inlined polynomial), which LLVM vectorises, gathering the delayed history reads.
+- That loop sits in the body of the parallel loop itself, and the scratch arrays are allocated
+  before it: numba then passes them to the body as ``noalias`` arguments, which the vectoriser
+  needs (a loop in a separately compiled callee, or on arrays allocated inside the body, stays
+  scalar). The helpers are ``forceinline`` and take whole arrays plus indices, never views or
+  tuples of arrays (both cost reference counting, and views alias).
+- Model constants are one plain array (:func:`kernel_model`); a tuple of arrays would be reference
+  counted at every read.
+- Two-link arms use a closed-form inertia solve; other arms a generic scalar Cholesky path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from teleopkit.model.dynamics import inertia_coefficients
+from teleopkit.model.params import TeleoperatorParams, Wall
+
+__all__ = ["LANES", "advance", "kernel_model"]
+
+LANES = 32
+"""Scenarios per block: the unit of parallel work and the length of the vectorised loops."""
+
+
+# sin and cos on [-pi/4, pi/4] (fdlibm's minimax coefficients) after a three-part Cody-Waite
+# reduction by pi/2: at most 2 ulp from libm for |x| < 1e5, and vectorisable.
+_TWO_OVER_PI = 0.6366197723675814
+_PIO2 = (1.57079632673412561417e+00, 6.07710050630396597660e-11, 2.02226624879595063154e-21)
+_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+
+
+# Rows of the model array (see kernel_model).
+_KL, _BL, _STIFFNESS, _ROTOR_INV, _WALL, _KS, _KD, _LIMIT, _WALL_K, _WALL_D = range(10)
+_INERTIA = 10
+_STAGE_FRACTIONS = (0.0, 0.5, 0.5, 1.0)
+
+
+def kernel_model(params: TeleoperatorParams) -> np.ndarray:
+    """Pack the constants of ``params`` into one array, the form the kernel takes.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+
+    Returns
+    -------
+    ndarray, shape (10 + 2 n, n)
+        Per joint: rows ``K_l, B_l, S_r, 1 / J_r``, wall position, ``K_s, K_d``, torque limit, wall
+        stiffness and damping (scalars repeated per joint); then the inertia coefficients ``a_ij``
+        (:func:`teleopkit.model.dynamics.inertia_coefficients`) of the local arm (``n`` rows) and
+        of the remote arm (``n`` rows). A plain array passes through numba's parallel loop and is
+        read without reference counting.
+    """
+    n = params.n_joints
+    wall = params.environment if isinstance(params.environment, Wall) else None
+    joint = [params.local_gains.stiffness, params.local_gains.damping, params.joints.stiffness,
+             1.0 / np.array(params.joints.rotor_inertia),
+             wall.position if wall else (math.inf,) * n]
+    scalars = [params.operator.stiffness, params.operator.damping, params.torque_limit,
+               wall.stiffness if wall else 0.0, wall.damping if wall else 0.0]
+    return np.vstack([np.array(joint), np.repeat(np.array(scalars)[:, None], n, axis=1),
+                      inertia_coefficients(params.local_arm),
+                      inertia_coefficients(params.remote_arm)])
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _sincos(x: float) -> tuple[float, float]:
+    """``(sin x, cos x)`` without a library call."""
+    q = math.floor(x * _TWO_OVER_PI + 0.5)
+    r = ((x - q * _PIO2[0]) - q * _PIO2[1]) - q * _PIO2[2]
+    z = r * r
+    s = r + r * z * (_SIN[0] + z * (_SIN[1] + z * (_SIN[2] + z * (_SIN[3] + z * (
+        _SIN[4] + z * _SIN[5])))))
+    c = 1.0 - 0.5 * z + z * z * (_COS[0] + z * (_COS[1] + z * (_COS[2] + z * (_COS[3] + z * (
+        _COS[4] + z * _COS[5])))))
+    odd = (q & 1) != 0
+    sin = c if odd else s
+    cos = s if odd else c
+    return (-sin if q & 2 else sin), (-cos if (q + 1) & 2 else cos)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _hermite(x0: float, v0: float, x1: float, v1: float, span: float, u: float) -> float:
+    u2 = u * u
+    u3 = u2 * u
+    return ((2 * u3 - 3 * u2 + 1) * x0 + (u3 - 2 * u2 + u) * span * v0
+            + (3 * u2 - 2 * u3) * x1 + (u3 - u2) * span * v1)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _locate(k: int, newest: int, frac: float, delay: float, dt: float,
+            length: int) -> tuple[int, int, float, float, bool, bool]:
+    """Locate a delayed read in a channel's history (:class:`~teleopkit.delays.ChannelHistory`).
+
+    ``k`` is the newest stored grid step (ring slot ``newest``), ``frac`` the read time minus
+    ``t_k`` and ``delay`` the delay, both in steps. Returns the ring slots ``(a, z)`` of the
+    interval's ends, the fraction ``u`` and length ``span`` of the interval, whether the read falls
+    inside the current step (then the interval ends at the integrator's stage, not at slot ``z``)
+    and whether it falls before ``t = 0`` (constant past). Indices stay inside the buffer
+    whatever the delay.
+    """
+    steps = k + frac - delay
+    inside = steps >= k
+    back = min(max(k - math.floor(steps), 0), length - 2)  # steps from t_k to the start
+    a = newest - back + (length if back > newest else 0)
+    z = a + 1 if a + 1 < length else 0
+    if inside:  # frac is 0, 1/2 or 1: multiplying by 2 is dividing by 1/2, exactly
+        u = (steps - k) * (1.0 if frac == 1.0 else 2.0) if frac > 0.0 else 0.0
+    else:
+        u = steps - (k - back)
+    return a, z, u, (frac * dt if inside else dt), inside, steps <= 0.0
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _interpolate(hist, lane, c, i, where, position, velocity, initial):
+    """Read joint ``i`` of channel ``c`` at the place ``where`` from :func:`_locate`.
+
+    ``position`` and ``velocity`` are the sender's values at the stage.
+    """
+    a, z, u, span, inside, before = where
+    n = initial.shape[2]
+    x1 = position if inside else hist[lane, c, z, i]
+    v1 = velocity if inside else hist[lane, c, z, n + i]
+    value = _hermite(hist[lane, c, a, i], hist[lane, c, a, n + i], x1, v1, span, u)
+    return initial[lane, c, i] if before else value
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _joint(m, i, ql, dql, qr, dqr, th, dth, ql_delayed, th_delayed, qh, kr, br):
+    """Controllers, operator, environment and spring of joint ``i`` (``m``: :func:`kernel_model`).
+
+    Returns the torque on the local link, the torque on the remote link and the motor acceleration.
+    """
+    lim = m[_LIMIT, i]
+    tau_l = min(max(m[_KL, i] * (ql - th_delayed) + m[_BL, i] * dql, -lim), lim)
+    tau_r = min(max(-kr * (th - ql_delayed) - br * dth, -lim), lim)
+    tau_h = m[_KS, i] * (qh - ql) - m[_KD, i] * dql
+    depth = qr - m[_WALL, i]
+    tau_e = max(0.0, m[_WALL_K, i] * depth + m[_WALL_D, i] * dqr) if depth > 0 else 0.0
+    spring = m[_STIFFNESS, i] * (qr - th)
+    return tau_h - tau_l, -spring - tau_e, (tau_r + spring) * m[_ROTOR_INV, i]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
+    """Closed form of :func:`_arm_acceleration` for two links: ``(q1'', q2'')``."""
+    first = _INERTIA + 2 * arm
+    a12, a22 = m[first, 1], m[first + 1, 1]
+    s, c = _sincos(q2)
+    m12 = a22 + a12 * c
+    m11 = m[first, 0] + a12 * c + m12
+    h2 = a12 * s * dq1 * dq1
+    h1 = h2 - a12 * s * (dq1 + dq2) * (dq1 + dq2)
+    r1 = tau1 - h1
+    r2 = tau2 - h2
+    inv_det = 1.0 / (m11 * a22 - m12 * m12)
+    return (a22 * r1 - m12 * r2) * inv_det, (m11 * r2 - m12 * r1) * inv_det
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt, st, slopes, b, r,
+                   lo, w):
+    """Write the slopes ``slopes[b, r, :, w]`` of lane ``w`` of a two-link block at RK4 stage ``r``.
+
+    The stage state is ``st[b, :, w]``; ``clock`` is ``(k, newest, row, p)``: newest stored grid
+    step, its ring slot, input row of the stage time and control period; ``frac`` is the stage
+    time minus ``t_k`` in steps and ``lo`` the block's first scenario.
+    """
+    k, newest, row, p = clock
+    lane = lo + w
+    ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
+    qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
+    th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
+    length = hist.shape[2]
+    to_remote = _locate(k, newest, frac, delays[0, row, lane], dt, length)
+    to_local = _locate(k, newest, frac, delays[1, row, lane], dt, length)
+    ql1_delayed = _interpolate(hist, lane, 0, 0, to_remote, ql1, dql1, initial)
+    ql2_delayed = _interpolate(hist, lane, 0, 1, to_remote, ql2, dql2, initial)
+    th1_delayed = _interpolate(hist, lane, 1, 0, to_local, th1, dth1, initial)
+    th2_delayed = _interpolate(hist, lane, 1, 1, to_local, th2, dth2, initial)
+    local1, link1, ddth1 = _joint(m, 0, ql1, dql1, qr1, dqr1, th1, dth1, ql1_delayed, th1_delayed,
+                                  qh[row, 0] * qh_gain[lane, 0], gains[p, lane, 0],
+                                  gains[p, lane, 2])
+    local2, link2, ddth2 = _joint(m, 1, ql2, dql2, qr2, dqr2, th2, dth2, ql2_delayed, th2_delayed,
+                                  qh[row, 1] * qh_gain[lane, 1], gains[p, lane, 1],
+                                  gains[p, lane, 3])
+    ddql1, ddql2 = _two_link_acceleration(m, 0, ql2, dql1, dql2, local1, local2)
+    ddqr1, ddqr2 = _two_link_acceleration(m, 1, qr2, dqr1, dqr2, link1, link2)
+    slopes[b, r, 0, w], slopes[b, r, 1, w] = dql1, dql2
+    slopes[b, r, 2, w], slopes[b, r, 3, w] = ddql1, ddql2
+    slopes[b, r, 4, w], slopes[b, r, 5, w] = dqr1, dqr2
+    slopes[b, r, 6, w], slopes[b, r, 7, w] = ddqr1, ddqr2
+    slopes[b, r, 8, w], slopes[b, r, 9, w] = dth1, dth2
+    slopes[b, r, 10, w], slopes[b, r, 11, w] = ddth1, ddth2
+    slopes[b, r, 12, w], slopes[b, r, 13, w] = th1 - ql1_delayed, th2 - ql2_delayed
+    slopes[b, r, 14, w], slopes[b, r, 15, w] = th1 - qr1, th2 - qr2
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _arm_acceleration(m, arm, x, b, w, first, work, slopes, r):
+    """Solve ``M(q) q'' = torque - C(q, q') q'`` for any number of links (:mod:`.dynamics`).
+
+    ``q`` and ``q'`` are ``x[b, first:first + n, w]`` and ``x[b, first + n:first + 2 n, w]``, the
+    torque is ``work[b, n + arm]`` (arm 0: local, 1: remote); ``q''`` is written to
+    ``slopes[b, r, first + n:first + 2 n, w]``. Rows ``:n`` and ``n + 2:`` of ``work[b]`` are
+    scratch.
+    """
+    n = work.shape[2]
+    coef = _INERTIA + n * arm
+    phi, dphi, coriolis = n + 2, n + 3, n + 4  # rows of work[b]
+    angle = 0.0
+    rate = 0.0
+    for i in range(n):
+        angle += x[b, first + i, w]
+        rate += x[b, first + n + i, w]
+        work[b, phi, i] = angle
+        work[b, dphi, i] = rate
+        work[b, coriolis, i] = 0.0
+        work[b, i, i] = m[coef + i, i]
+    for i in range(n):
+        for j in range(i + 1, n):
+            s, c = _sincos(work[b, phi, i] - work[b, phi, j])
+            a = m[coef + i, j]
+            work[b, i, j] = a * c
+            work[b, j, i] = a * c
+            work[b, coriolis, i] += a * s * work[b, dphi, j] * work[b, dphi, j]
+            work[b, coriolis, j] -= a * s * work[b, dphi, i] * work[b, dphi, i]
+    for j in range(n):  # M = T^T M_abs T: suffix sums over rows, then columns
+        for i in range(n - 2, -1, -1):
+            work[b, i, j] += work[b, i + 1, j]
+    for i in range(n):
+        for j in range(n - 2, -1, -1):
+            work[b, i, j] += work[b, i, j + 1]
+    for i in range(n - 2, -1, -1):
+        work[b, coriolis, i] += work[b, coriolis, i + 1]
+    for i in range(n):
+        work[b, dphi, i] = work[b, n + arm, i] - work[b, coriolis, i]
+    _cholesky_solve(work, b, dphi)
+    for i in range(n):
+        slopes[b, r, first + n + i, w] = work[b, dphi, i]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _cholesky_solve(work, b, row):
+    """Solve ``A y = work[b, row]`` in place, ``A = work[b, :n]`` (SPD, overwritten)."""
+    n = work.shape[2]
+    for j in range(n):
+        d = work[b, j, j]
+        for k in range(j):
+            d -= work[b, j, k] * work[b, j, k]
+        work[b, j, j] = math.sqrt(d)
+        for i in range(j + 1, n):
+            s = work[b, i, j]
+            for k in range(j):
+                s -= work[b, i, k] * work[b, j, k]
+            work[b, i, j] = s / work[b, j, j]
+    for i in range(n):
+        for k in range(i):
+            work[b, row, i] -= work[b, i, k] * work[b, row, k]
+        work[b, row, i] /= work[b, i, i]
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            work[b, row, i] -= work[b, k, i] * work[b, row, k]
+        work[b, row, i] /= work[b, i, i]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt, st, slopes, b, r,
+                  lo, w, work):
+    """Do :func:`_two_link_lane` for any number of joints; ``work[b]`` ``(n + 5, n)`` is scratch."""
+    k, newest, row, p = clock
+    lane = lo + w
+    length = hist.shape[2]
+    n = initial.shape[2]
+    to_remote = _locate(k, newest, frac, delays[0, row, lane], dt, length)
+    to_local = _locate(k, newest, frac, delays[1, row, lane], dt, length)
+    for i in range(n):
+        ql = _interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
+        th = _interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
+                          initial)
+        work[b, n, i], work[b, n + 1, i], slopes[b, r, 5 * n + i, w] = _joint(
+            m, i, st[b, i, w], st[b, n + i, w], st[b, 2 * n + i, w], st[b, 3 * n + i, w],
+            st[b, 4 * n + i, w], st[b, 5 * n + i, w], ql, th, qh[row, i] * qh_gain[lane, i],
+            gains[p, lane, i], gains[p, lane, n + i])
+        slopes[b, r, i, w] = st[b, n + i, w]
+        slopes[b, r, 2 * n + i, w] = st[b, 3 * n + i, w]
+        slopes[b, r, 4 * n + i, w] = st[b, 5 * n + i, w]
+        slopes[b, r, 6 * n + i, w] = st[b, 4 * n + i, w] - ql
+        slopes[b, r, 7 * n + i, w] = st[b, 4 * n + i, w] - st[b, 2 * n + i, w]
+    _arm_acceleration(m, 0, st, b, w, 0, work, slopes, r)
+    _arm_acceleration(m, 1, st, b, w, 2 * n, work, slopes, r)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _stage_state(xs, slopes, st, b, r, h, width):
+    """``st[b] = xs[b] + h slopes[b, r - 1]`` (``xs[b]`` for the first stage)."""
+    for v in range(xs.shape[1]):
+        for w in range(width):
+            st[b, v, w] = xs[b, v, w] + h * slopes[b, r - 1, v, w] if r > 0 else xs[b, v, w]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _rk4_update(xs, slopes, b, dt, width):
+    """Advance ``xs[b]`` by one RK4 step from the four stage slopes."""
+    for v in range(xs.shape[1]):
+        for w in range(width):
+            xs[b, v, w] += (dt / 6.0) * (slopes[b, 0, v, w] + 2.0 * slopes[b, 1, v, w]
+                                         + 2.0 * slopes[b, 2, v, w] + slopes[b, 3, v, w])
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _transfer(x, xs, b, lo, width, to_block):
+    """Copy scenarios ``lo:lo + width`` from ``x`` into block ``xs[b]`` or back."""
+    for v in range(x.shape[1]):
+        for w in range(width):
+            if to_block:
+                xs[b, v, w] = x[lo + w, v]
+            else:
+                x[lo + w, v] = xs[b, v, w]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _record(hist, slot, xs, b, lo, width):
+    """Store the block's channel signals (positions, then velocities) in ring slot ``slot``."""
+    n = xs.shape[1] // 8
+    for c in range(2):
+        for v in range(2 * n):
+            for w in range(width):
+                hist[lo + w, c, slot, v] = xs[b, 4 * n * c + v, w]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
+          out_delayed):
+    """Write the block's state and delayed signals at the end of period ``p``.
+
+    That is grid step ``k``, input row ``row``.
+    """
+    length = hist.shape[2]
+    n = initial.shape[2]
+    for w in range(width):
+        lane = lo + w
+        for c in range(2):
+            where = _locate(k, k % length, 0.0, delays[c, row, lane], dt, length)
+            for i in range(n):
+                out_delayed[p, lane, c, i] = _interpolate(
+                    hist, lane, c, i, where, xs[b, 4 * n * c + i, w],
+                    xs[b, 4 * n * c + n + i, w], initial)
+        for v in range(xs.shape[1]):
+            out_state[p, lane, v] = xs[b, v, w]
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
+             out_delayed):
+    batch, dim = x.shape
+    n = dim // 8
+    length = hist.shape[2]
+    blocks = (batch + LANES - 1) // LANES
+    # Per-block scratch, allocated outside the parallel loop so that it reaches it as noalias
+    # arguments: state, stage state, the four RK4 slopes and the generic path's work rows.
+    xs = np.empty((blocks, dim, LANES))
+    st = np.empty_like(xs)
+    slopes = np.empty((blocks, 4, dim, LANES))
+    work = np.empty((blocks, n + 5, n))
+    for b in prange(blocks):
+        lo = b * LANES
+        width = min(LANES, batch - lo)
+        _transfer(x, xs, b, lo, width, True)
+        for p in range(gains.shape[0]):
+            for s in range(substeps):
+                k = step0 + p * substeps + s
+                newest = k % length
+                for r in range(4):
+                    clock = (k, newest, 2 * (p * substeps + s) + (r + 1) // 2, p)
+                    frac = _STAGE_FRACTIONS[r]
+                    _stage_state(xs, slopes, st, b, r, frac * dt, width)
+                    # The loops over lanes stay in this parallel body, where LLVM vectorises
+                    # them (the arrays are noalias here, not in a separately compiled callee).
+                    if dim == 16:
+                        for w in range(width):
+                            _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
+                                           frac, dt, st, slopes, b, r, lo, w)
+                    else:
+                        for w in range(width):
+                            _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
+                                          frac, dt, st, slopes, b, r, lo, w, work)
+                _rk4_update(xs, slopes, b, dt, width)
+                _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
+            _emit(hist, initial, delays, step0 + (p + 1) * substeps, 2 * (p + 1) * substeps, p,
+                  dt, xs, b, lo, width, out_state, out_delayed)
+        _transfer(x, xs, b, lo, width, False)
+
+
+def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt: float,
+            substeps: int, delays: np.ndarray, qh: np.ndarray, qh_gain: np.ndarray,
+            gains: np.ndarray, model: np.ndarray, out_state: np.ndarray,
+            out_delayed: np.ndarray) -> None:
+    """Integrate ``gains.shape[0]`` control periods of ``substeps`` RK4 steps, in place.
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, 8 n)
+        States at grid step ``step0``; overwritten with the final states.
+    hist : ndarray, shape (B, 2, L, 2 n)
+        Ring buffers of the two channels (channel 0: ``q_l``, channel 1: ``theta_r``): grid step
+        ``k`` is in slot ``k % L`` as ``[positions, velocities]``; updated. ``L`` must exceed the
+        largest delay by two steps.
+    initial : ndarray, shape (B, 2, n)
+        Constant past of each channel.
+    step0 : int
+        Grid index of the current time.
+    dt : float
+        Integration step.
+    substeps : int
+        Integration steps per control period.
+    delays : ndarray, shape (2, 2 P substeps + 1, B)
+        Forward and backward delays, in integration steps, at every half step from the current
+        time.
+    qh, qh_gain : ndarray, shapes (2 P substeps + 1, n) and (B, n)
+        The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
+        with unit gains, times each scenario's gains ``G``).
+    gains : ndarray, shape (P, B, 2 n)
+        Remote gains ``[K_r, B_r]`` held over each control period.
+    model : ndarray
+        Model constants from :func:`kernel_model`.
+    out_state : ndarray, shape (P, B, 8 n)
+        Receives the state at the end of each period.
+    out_delayed : ndarray, shape (P, B, 2, n)
+        Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
+    """
+    threads = numba.get_num_threads()
+    if x.shape[0] <= LANES:  # one block: waking the other threads would only cost time
+        numba.set_num_threads(1)
+    try:
+        _advance(model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+                 out_state, out_delayed)
+    finally:
+        numba.set_num_threads(threads)

@@ -1,0 +1,140 @@
+"""The readable integrator: numpy, batched, one RK4 step at a time.
+
+It states the closed loop the way the paper writes it, using :mod:`teleopkit.model.dynamics`,
+:mod:`teleopkit.model.laws` and :class:`teleopkit.delays.history.ChannelHistory`. The compiled
+kernel (:mod:`teleopkit.sim.kernel`) must agree with it to rounding error; it is also the "plain
+per-step Python loop" of the benchmarks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from teleopkit.delays.history import ChannelHistory
+from teleopkit.model.dynamics import coriolis_matrix, mass_matrix
+from teleopkit.model.laws import environment_torque, local_torque, operator_torque, remote_torque
+from teleopkit.model.params import PlanarArm, TeleoperatorParams
+from teleopkit.sim.state import StateLayout
+
+__all__ = ["NumpyIntegrator"]
+
+_STAGE_OFFSETS = (0.0, 0.5, 0.5, 1.0)
+_STAGE_ROWS = (0, 1, 1, 2)
+
+
+class NumpyIntegrator:
+    """Fixed-step RK4 of the delayed teleoperator, in numpy.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The model.
+    state : ndarray, shape (B, 8 n)
+        Initial state (:class:`~teleopkit.sim.state.StateLayout`).
+    dt : float
+        Integration step.
+    substeps : int
+        Integration steps per control period.
+    bound : float
+        Largest delay that will be read.
+    """
+
+    def __init__(self, params: TeleoperatorParams, state: np.ndarray, dt: float, substeps: int,
+                 bound: float) -> None:
+        self.params = params
+        self.state = np.array(state, dtype=float)
+        self.dt = dt
+        self.substeps = substeps
+        self.layout = StateLayout(params.n_joints)
+        self.channels = tuple(ChannelHistory(self.layout.channel(self.state, c)[0], dt, bound)
+                              for c in (0, 1))
+
+    def advance(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate ``gains.shape[0]`` control periods.
+
+        Parameters
+        ----------
+        delays : ndarray, shape (2 P substeps + 1, B, 2)
+            Forward and backward delays (seconds) at every half step from the current time.
+        qh : ndarray, shape (2 P substeps + 1, B, n)
+            Operator reference at the same times.
+        gains : ndarray, shape (P, B, 2 n)
+            Remote gains ``[K_r, B_r]`` held over each control period.
+
+        Returns
+        -------
+        states : ndarray, shape (P, B, 8 n)
+            State at the end of each period.
+        delayed : ndarray, shape (P, B, 2, n)
+            ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
+        """
+        states, delayed = [], []
+        for p, period_gains in enumerate(gains):
+            for s in range(self.substeps):
+                row = 2 * (p * self.substeps + s)
+                self._rk4_step(delays[row:row + 3], qh[row:row + 3], period_gains)
+            row_end = 2 * (p + 1) * self.substeps
+            states.append(self.state.copy())
+            delayed.append(np.stack(self._delayed(self.state, 0.0, delays[row_end]), axis=1))
+        return np.array(states), np.array(delayed)
+
+    def _rk4_step(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray) -> None:
+        slopes: list[np.ndarray] = []
+        for offset, row in zip(_STAGE_OFFSETS, _STAGE_ROWS, strict=True):
+            stage = self.state + offset * self.dt * slopes[-1] if slopes else self.state
+            slopes.append(self.derivative(stage, offset, delays[row], qh[row], gains))
+        k1, k2, k3, k4 = slopes
+        self.state = self.state + self.dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        for c, channel in enumerate(self.channels):
+            channel.record(*self.layout.channel(self.state, c))
+
+    def _delayed(self, x: np.ndarray, offset: float, delays: np.ndarray,
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        forward, backward = (channel.read(offset * self.dt, delays[:, c],
+                                          self.layout.channel(x, c))
+                             for c, channel in enumerate(self.channels))
+        return forward, backward
+
+    def derivative(self, x: np.ndarray, offset: float, delays: np.ndarray, qh: np.ndarray,
+                   gains: np.ndarray) -> np.ndarray:
+        """Time derivative of the state at ``t_k + offset dt`` (the stage's delayed read-outs).
+
+        Parameters
+        ----------
+        x : ndarray, shape (B, 8 n)
+            Stage state.
+        offset : float
+            Stage time after the newest stored sample, in steps.
+        delays : ndarray, shape (B, 2)
+            Forward and backward delays at the stage time.
+        qh : ndarray, shape (B, n)
+            Operator reference at the stage time.
+        gains : ndarray, shape (B, 2 n)
+            Remote gains.
+
+        Returns
+        -------
+        ndarray, shape (B, 8 n)
+            The derivative.
+        """
+        p = self.params
+        ql, dql, qr, dqr, th, dth = (self.layout.get(x, name)
+                                     for name in ("ql", "dql", "qr", "dqr", "theta", "dtheta"))
+        ql_delayed, th_delayed = self._delayed(x, offset, delays)
+        tau_l = local_torque(p.local_gains, ql, dql, th_delayed, p.torque_limit)
+        tau_r = remote_torque(gains, th, dth, ql_delayed, p.torque_limit)
+        tau_h = operator_torque(p.operator, qh, ql, dql)
+        tau_e = environment_torque(p.environment, qr, dqr)
+        spring = np.array(p.joints.stiffness) * (qr - th)
+        ddql = self._acceleration(p.local_arm, ql, dql, tau_h - tau_l)
+        ddqr = self._acceleration(p.remote_arm, qr, dqr, -spring - tau_e)
+        ddth = (tau_r + spring) / np.array(p.joints.rotor_inertia)
+        return self.layout.pack(len(x), ql=dql, dql=ddql, qr=dqr, dqr=ddqr, theta=dth,
+                                dtheta=ddth, int_track=th - ql_delayed, int_damp=th - qr)
+
+    @staticmethod
+    def _acceleration(arm: PlanarArm, q: np.ndarray, dq: np.ndarray,
+                      torque: np.ndarray) -> np.ndarray:
+        coriolis = np.einsum("bij,bj->bi", coriolis_matrix(arm, q, dq), dq)
+        return np.linalg.solve(mass_matrix(arm, q), (torque - coriolis)[..., None])[..., 0]

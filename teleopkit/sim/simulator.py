@@ -1,0 +1,294 @@
+"""Batched fixed-step simulator of the delayed teleoperator.
+
+The remote gains are held over each control period (10 ms by default) and the model is integrated
+with RK4 at a fixed step (:data:`~teleopkit.sim.timing.DEFAULT_DT`, 1.25 ms, by default).
+Delays and the operator reference are sampled at every half step in numpy; the compiled kernel
+(``backend="compiled"``, :mod:`teleopkit.sim.kernel`) or the readable numpy integrator
+(``backend="numpy"``, :mod:`teleopkit.sim.numpy_integrator`) integrates. A batch of scenarios
+shares the model; the batch axis comes first in every array.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from teleopkit.delays.profiles import DelayProfile
+from teleopkit.delays.spec import parse_delay
+from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.sim import kernel
+from teleopkit.sim.numpy_integrator import NumpyIntegrator
+from teleopkit.sim.scenarios import Scenario, sample_reference_gains
+from teleopkit.sim.state import StateLayout
+from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
+from teleopkit.sim.trajectory import StepResult, Trajectory
+
+__all__ = ["Simulator", "check_gains", "simulate"]
+
+Backend = Literal["compiled", "numpy"]
+
+
+def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
+    """Validate remote gains ``[K_r, B_r]`` (finite, non-negative, last axis ``2 n``).
+
+    Parameters
+    ----------
+    gains : ndarray, shape (..., 2 n)
+        Gains to check.
+    n_joints : int
+        Number of joints.
+
+    Returns
+    -------
+    ndarray
+        The gains as a float array.
+    """
+    gains = np.asarray(gains, dtype=float)
+    if gains.shape[-1:] != (2 * n_joints,):
+        raise ValueError(f"remote gains need {2 * n_joints} values [K_r..., B_r...] on the last "
+                         f"axis, got shape {gains.shape}")
+    if not np.all(np.isfinite(gains)) or np.any(gains < 0):
+        raise ValueError("remote gains must be finite and non-negative")
+    return gains
+
+
+class Simulator:
+    """Batched simulator of a :class:`~teleopkit.sim.scenarios.Scenario`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Teleoperator, delay profiles and operator reference gains (``B`` scenarios).
+    dt : float
+        Integration step in seconds.
+    control_period : float
+        Period over which the remote gains are held, a multiple of ``dt``.
+    backend : {"compiled", "numpy"}
+        The numba kernel or the readable numpy integrator.
+
+    Examples
+    --------
+    >>> from teleopkit.sim.scenarios import paper_scenarios
+    >>> sim = Simulator(paper_scenarios(0, batch=2))
+    >>> result = sim.advance(np.tile([10.0, 10.0, 30.0, 30.0], (3, 2, 1)))
+    >>> result.state.shape, round(sim.time, 6)
+    ((3, 2, 16), 0.03)
+    """
+
+    def __init__(self, scenario: Scenario, dt: float = DEFAULT_DT,
+                 control_period: float = CONTROL_PERIOD, backend: Backend = "compiled") -> None:
+        self.substeps = substeps(control_period, dt)
+        if backend not in ("compiled", "numpy"):
+            raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
+        self.scenario = scenario
+        self.dt = dt
+        self.control_period = control_period
+        self.backend = backend
+        self.layout = StateLayout(scenario.params.n_joints)
+        self._model = kernel.kernel_model(scenario.params)
+        self.reset()
+
+    @property
+    def batch(self) -> int:
+        """Number of scenarios."""
+        return self.scenario.batch
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints per arm."""
+        return self.scenario.params.n_joints
+
+    @property
+    def time(self) -> float:
+        """Current simulation time in seconds."""
+        return self._step * self.dt
+
+    @property
+    def state(self) -> np.ndarray:
+        """Current state, shape ``(B, 8 n)`` (a copy)."""
+        return (self._numpy.state if self._numpy else self._x).copy()
+
+    def initial_state(self) -> np.ndarray:
+        """State at ``t = 0``: the scenario's initial positions, zero velocities and integrals."""
+        init = self.scenario.params.initial
+        return self.layout.pack(self.batch, ql=init.local, qr=init.remote, theta=init.motor)
+
+    def _constant_past(self, x: np.ndarray) -> np.ndarray:
+        """What each channel delivers before its first sample, shape ``(B, 2, n)``."""
+        return np.stack([self.layout.channel(x, c)[0] for c in (0, 1)], axis=1)
+
+    def reset(self) -> None:
+        """Return to ``t = 0`` with the initial state and an empty history."""
+        self._step = 0
+        x = self.initial_state()
+        n = self.n_joints
+        length = math.ceil(self.scenario.delay_bound / self.dt) + 2
+        self._numpy: NumpyIntegrator | None = None
+        if self.backend == "numpy":
+            self._numpy = NumpyIntegrator(self.scenario.params, x, self.dt, self.substeps,
+                                          self.scenario.delay_bound)
+            return
+        self._x = x
+        self._initial = self._constant_past(x)
+        self._hist = np.zeros((self.batch, 2, length, 2 * n))
+        self._hist[..., :n] = self._initial[:, :, None, :]
+
+    def initial_record(self) -> StepResult:
+        """The record at ``t = 0`` (the delayed signals are the constant past)."""
+        x = self.initial_state()
+        delays, _ = self.sample_inputs(np.zeros(1))
+        return StepResult(np.zeros(1), x[None], self._constant_past(x)[None], delays)
+
+    def sample_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delays ``(S, B, 2)`` and operator reference ``(S, B, n)`` at the times ``(S,)``.
+
+        Parameters
+        ----------
+        times : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        delays : ndarray, shape (S, B, 2)
+            ``T_l(t)`` and ``T_r(t)`` in seconds for each scenario.
+        reference : ndarray, shape (S, B, n)
+            Operator reference ``q_h(t)`` in radians, with each scenario's reference gains.
+        """
+        delays, unit = self._sample(times)
+        return np.moveaxis(delays, 0, -1), self.scenario.reference_gains[None] * unit[:, None]
+
+    def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delays ``(2, S, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
+
+        The reference of scenario ``b`` is ``G_b`` times the unit one (see
+        :class:`~teleopkit.model.params.Operator`), so it is evaluated once, not once per scenario.
+        """
+        delays = np.empty((2, times.size, self.batch))
+        delays[0] = self.scenario.forward.sample(times)
+        delays[1] = self.scenario.backward.sample(times)
+        unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
+        return delays, unit[:, 0]
+
+    def advance(self, gains: np.ndarray) -> StepResult:
+        """Simulate ``P`` control periods with the given remote gains.
+
+        Parameters
+        ----------
+        gains : ndarray, shape (P, B, 2 n) or (B, 2 n) or (2 n,)
+            Remote gains ``[K_r^1..K_r^n, B_r^1..B_r^n]`` held over each period; a 1-D or 2-D
+            array is one period.
+
+        Returns
+        -------
+        StepResult
+            The state, delayed signals and delays at the end of each period.
+        """
+        gains = check_gains(gains, self.n_joints)
+        gains = np.ascontiguousarray(np.broadcast_to(
+            gains if gains.ndim == 3 else gains.reshape(1, -1, gains.shape[-1]),
+            (gains.shape[0] if gains.ndim == 3 else 1, self.batch, 2 * self.n_joints)))
+        periods = gains.shape[0]
+        stages = self._step + 0.5 * np.arange(2 * periods * self.substeps + 1)
+        delays, unit = self._sample(stages * self.dt)
+        ends = slice(2 * self.substeps, None, 2 * self.substeps)
+        end_delays = np.moveaxis(delays[:, ends], 0, -1).copy()
+        reference_gains = self.scenario.reference_gains
+        if self._numpy is not None:
+            state, delayed = self._numpy.advance(np.moveaxis(delays, 0, -1),
+                                                     reference_gains[None] * unit[:, None], gains)
+        else:
+            state = np.empty((periods, self.batch, self.layout.size))
+            delayed = np.empty((periods, self.batch, 2, self.n_joints))
+            delays /= self.dt  # the kernel takes them in steps
+            kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
+                            self.substeps, delays, unit, reference_gains, gains, self._model,
+                            state, delayed)
+        self._step += periods * self.substeps
+        return StepResult(stages[ends] * self.dt, state, delayed, end_delays)
+
+    def run(self, duration: float, gains: np.ndarray | None = None,
+            chunk: float = 1.0) -> Trajectory:
+        """Reset and simulate ``duration`` seconds, recording every control period.
+
+        Parameters
+        ----------
+        duration : float
+            Length of the run in seconds (rounded to whole control periods).
+        gains : ndarray, optional
+            Remote gains: ``(2 n,)`` or ``(B, 2 n)`` constant, or ``(P, B, 2 n)`` one row per
+            period; the scenario's ``remote_gains`` by default.
+        chunk : float
+            Seconds simulated per kernel call (bounds the memory of the sampled inputs).
+
+        Returns
+        -------
+        Trajectory
+            The run, from ``t = 0`` (initial row included).
+        """
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f"duration must be positive, got {duration}")
+        periods = max(1, round(duration / self.control_period))
+        if gains is None:
+            gains = self.scenario.params.remote_gains.as_action()
+        gains = check_gains(gains, self.n_joints)
+        if gains.ndim < 3:
+            gains = np.broadcast_to(gains, (periods, self.batch, gains.shape[-1]))
+        if gains.shape[0] != periods:
+            raise ValueError(f"gain schedule has {gains.shape[0]} periods, the run needs {periods}")
+        self.reset()
+        parts = [self.initial_record()]
+        per_chunk = max(1, round(chunk / self.control_period))
+        for start in range(0, periods, per_chunk):
+            parts.append(self.advance(gains[start:start + per_chunk]))
+        return Trajectory.join(parts, gains)
+
+
+def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
+             delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+             params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
+             control_period: float = CONTROL_PERIOD) -> pd.DataFrame:
+    """Simulate one scenario and return it as a table.
+
+    Parameters
+    ----------
+    gains : (K_r, B_r) or ndarray, optional
+        Uniform remote gains as a pair, or an action vector ``[K_r..., B_r...]``; the parameters'
+        ``remote_gains`` by default.
+    duration : float
+        Length in seconds.
+    delay : str or (DelayProfile, DelayProfile)
+        A spec for :func:`teleopkit.delays.parse_delay` or the forward and backward profiles.
+    seed : int
+        Seed of the operator's reference gains and of random delay parameters.
+    params : TeleoperatorParams, optional
+        The teleoperator; the paper's by default.
+    dt : float
+        Integration step.
+    control_period : float
+        Gain hold period.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i, dtheta_i, Tl, Tr, ql_delayed_i,
+        theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i`` every control period.
+
+    Examples
+    --------
+    >>> table = simulate((10.0, 30.0), duration=1.0, delay="constant:0.2")
+    >>> len(table), float(table["t"].iloc[-1])
+    (101, 1.0)
+    """
+    params = params if params is not None else paper_setup()
+    rng = np.random.default_rng(seed)
+    reference = sample_reference_gains(rng, 1, params.n_joints)
+    forward, backward = parse_delay(delay, rng) if isinstance(delay, str) else delay
+    action = None
+    if gains is not None:
+        gains = np.asarray(gains, dtype=float)
+        action = np.repeat(gains, params.n_joints) if gains.shape == (2,) else gains
+    sim = Simulator(Scenario(params, forward, backward, reference), dt, control_period)
+    return sim.run(duration, action).to_frame()

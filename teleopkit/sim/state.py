@@ -1,0 +1,157 @@
+"""The simulator's state vector: one named layout for every reader.
+
+A scenario's state is a flat vector of ``8 n`` values (``n`` joints per arm), the blocks in the
+order of :data:`FIELDS`::
+
+    [q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp]
+
+with ``e_track = theta - q_l(t - T_l)`` and ``e_damp = theta - q_r``. The two delay channels carry
+``(q_l, q_l')`` forward and ``(theta, theta')`` backward. :class:`StateLayout` names the blocks so
+that the simulator, the environments, campaigns and falsification never count offsets by hand
+(the compiled kernel, which needs constant offsets, is tested against the numpy integrator that
+uses this layout).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["FIELDS", "Field", "StateLayout"]
+
+Field = Literal["ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track", "int_damp"]
+
+FIELDS: tuple[Field, ...] = ("ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track",
+                             "int_damp")
+"""Names of the state blocks, in order: local, remote link and motor positions and velocities,
+then the integrated tracking and damping errors."""
+
+_CHANNELS: tuple[tuple[Field, Field], ...] = (("ql", "dql"), ("theta", "dtheta"))
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Where each block of :data:`FIELDS` sits in a state vector of ``8 n`` values.
+
+    Parameters
+    ----------
+    n_joints : int
+        Joints per arm.
+
+    Examples
+    --------
+    >>> layout = StateLayout(2)
+    >>> layout.slice("theta"), layout.size
+    (slice(8, 10, None), 16)
+    """
+
+    n_joints: int
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_joints, bool) or int(self.n_joints) != self.n_joints \
+                or self.n_joints < 1:
+            raise ValueError(f"a state layout needs n_joints >= 1, got {self.n_joints!r}")
+
+    @classmethod
+    def of(cls, state: np.ndarray) -> StateLayout:
+        """The layout of states whose last axis has ``8 n`` entries.
+
+        Parameters
+        ----------
+        state : ndarray, shape (..., 8 n)
+            States.
+
+        Returns
+        -------
+        StateLayout
+            The layout for ``n`` joints.
+        """
+        size = np.shape(state)[-1]
+        if size % len(FIELDS):
+            raise ValueError(f"a state has {len(FIELDS)} n entries, got {size}")
+        return cls(size // len(FIELDS))
+
+    @property
+    def size(self) -> int:
+        """Length ``8 n`` of a state vector."""
+        return len(FIELDS) * self.n_joints
+
+    def slice(self, name: Field) -> slice:
+        """The entries of block ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A name of :data:`FIELDS`.
+
+        Returns
+        -------
+        slice
+            Its ``n`` entries.
+        """
+        if name not in FIELDS:
+            raise ValueError(f"unknown state block {name!r}; known: {', '.join(FIELDS)}")
+        start = FIELDS.index(name) * self.n_joints
+        return slice(start, start + self.n_joints)
+
+    def get(self, state: np.ndarray, name: Field) -> np.ndarray:
+        """Block ``name`` of states of any leading shape.
+
+        Parameters
+        ----------
+        state : ndarray, shape (..., 8 n)
+            States.
+        name : str
+            A name of :data:`FIELDS`.
+
+        Returns
+        -------
+        ndarray, shape (..., n)
+            A view of the block.
+        """
+        return np.asarray(state)[..., self.slice(name)]
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Indices of every joint angle: local, remote link and motor positions (``3 n``)."""
+        return np.r_[self.slice("ql"), self.slice("qr"), self.slice("theta")]
+
+    def channel(self, state: np.ndarray, channel: int) -> tuple[np.ndarray, np.ndarray]:
+        """The signal a delay channel carries: its position and velocity blocks.
+
+        Parameters
+        ----------
+        state : ndarray, shape (..., 8 n)
+            States.
+        channel : {0, 1}
+            0: forward (``q_l, q_l'``); 1: backward (``theta, theta'``).
+
+        Returns
+        -------
+        position, velocity : ndarray, shape (..., n)
+            Views of the two blocks.
+        """
+        position, velocity = _CHANNELS[channel]
+        return self.get(state, position), self.get(state, velocity)
+
+    def pack(self, batch: int = 1, **blocks: np.ndarray | tuple[float, ...]) -> np.ndarray:
+        """States assembled from named blocks (the others zero).
+
+        Parameters
+        ----------
+        batch : int
+            Number of states.
+        **blocks : array_like, shape (n,) or (batch, n)
+            Values of named blocks, for example ``ql=(0.1, 0.2)``.
+
+        Returns
+        -------
+        ndarray, shape (batch, 8 n)
+            The states.
+        """
+        state = np.zeros((batch, self.size))
+        for name, values in blocks.items():
+            state[:, self.slice(name)] = values  # type: ignore[arg-type]
+        return state

@@ -1,0 +1,49 @@
+"""The simulation clock: the default integration step and the control period.
+
+The remote gains are held over each control period (the agent's sample time, 10 ms in the paper)
+and the model is integrated at a fixed step that divides it.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["CONTROL_PERIOD", "DEFAULT_DT", "substeps"]
+
+DEFAULT_DT = 0.00125
+"""Default integration step (s): 8 RK4 steps per 10 ms control period, at most 7e-6 rad from a
+converged solution over the paper's 40 s episode (2.5 ms, the largest step below RK4's stability
+limit of about 2.7 ms on this model, is 16 times less accurate; ``benchmarks/README.md``)."""
+
+CONTROL_PERIOD = 0.01
+"""Default control period (s): the paper's agent sample time, over which gains are held."""
+
+
+def substeps(control_period: float, dt: float) -> int:
+    """Integration steps per control period; the one check that the two fit together.
+
+    Parameters
+    ----------
+    control_period : float
+        Gain hold period in seconds.
+    dt : float
+        Integration step in seconds.
+
+    Returns
+    -------
+    int
+        ``control_period / dt``, a positive integer.
+
+    Raises
+    ------
+    ValueError
+        If either is not positive and finite, or the period is not a multiple of the step.
+    """
+    for name, value in (("integration step", dt), ("control period", control_period)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be positive, got {value}")
+    count = round(control_period / dt)
+    if count < 1 or abs(count * dt - control_period) > 1e-9 * control_period:
+        raise ValueError(f"control period {control_period:g} s must be a positive multiple of "
+                         f"the integration step {dt:g} s")
+    return count
