@@ -65,21 +65,23 @@ def cli() -> None:
 def simulate(kr: str, br: str, duration: float, delay: str, seed: int, dt: float, out: Path,
              plot: Path | None) -> None:
     """Simulate the paper's teleoperator with constant remote gains and write the run as CSV."""
-    from teleopkit.sim.simulator import simulate as run
+    from teleopkit.files import write_csv
+    from teleopkit.sim.simulator import simulate_trajectory
 
     gains = np.array(_gain_vector(kr, "--kr") + _gain_vector(br, "--br"))
-    table = run(gains, duration=duration, delay=delay, seed=seed, dt=dt)
+    trajectory = simulate_trajectory(gains, duration=duration, delay=delay, seed=seed, dt=dt)
     try:
-        table.to_csv(out, index=False)
+        write_csv(out, trajectory.columns())
     except OSError as error:
         raise click.FileError(str(out), hint=error.strerror) from None
     if plot is not None:
         from teleopkit.plots import save_run_figure
 
-        save_run_figure(table, plot, title=f"K_r = {kr}, B_r = {br}, delay {delay}")
-    e = table.filter(like="e_track_").to_numpy()
+        save_run_figure(trajectory.to_frame(), plot,
+                        title=f"K_r = {kr}, B_r = {br}, delay {delay}")
+    e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
-    click.echo(f"wrote {len(table)} rows to {out}; RMS tracking error {rms:.4g} rad")
+    click.echo(f"wrote {len(trajectory.t)} rows to {out}; RMS tracking error {rms:.4g} rad")
 
 
 @cli.command()

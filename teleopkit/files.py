@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import os
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write"]
+import numpy as np
+
+__all__ = ["atomic_write", "write_csv"]
 
 
 def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> None:
@@ -34,3 +36,21 @@ def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> None:
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def write_csv(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
+    """Write equal-length numeric columns as a CSV file, atomically, without pandas.
+
+    Numbers are written in the shortest form that reads back to the same float (as pandas
+    does), so the file round-trips exactly.
+
+    Parameters
+    ----------
+    path : str or Path
+        Destination file.
+    columns : mapping of str to ndarray, shape (N,)
+        Column names and values, in order.
+    """
+    matrix = np.column_stack([np.asarray(v, dtype=float) for v in columns.values()]).tolist()
+    lines = [",".join(columns), *(",".join(map(repr, row)) for row in matrix)]
+    atomic_write(path, lambda tmp: tmp.write_text("\n".join(lines) + "\n"))

@@ -78,7 +78,8 @@ def test_points_of_the_set_stay(point):
 
 @REFERENCE
 @given(actions)
-@example(np.array([76.0, 118.0, 118.0, 118.0]))  # onto a vertex: stalled Clarabel's equilibration
+@example(np.array([76.0, 118.0, 118.0, 118.0]))  # onto vertices: Clarabel stalled with
+@example(np.array([144.0, 0.0, 131.0, 0.0]))  # equilibration (first) or without it (second)
 def test_fast_path_matches_cvxpy_reference(raw):
     np.testing.assert_allclose(LAYER.project(raw).action, LAYER.project_qp(raw),
                                rtol=0, atol=1e-7)
@@ -219,3 +220,10 @@ def test_malformed_polytopes_are_refused():
         SafetyLayer(box, max_step=0.0)
     with pytest.raises(ValueError, match="shape"):
         SafetyLayer(box).project(np.zeros(3))
+
+
+def test_near_ties_between_edges_are_resolved_exactly():
+    """Far from the set, two candidates a micro-unit apart have equal squared distances."""
+    layer = SafetyLayer(GainPolytope.from_box(GainBox.uniform((0.0, 50.0), (0.0, 150.0))))
+    raw = np.array([178.0, 1e-6, 1e-6, 1e-6])
+    np.testing.assert_array_equal(layer.project(raw).action, [50.0, 1e-6, 1e-6, 1e-6])

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 import numpy as np
-import pandas as pd
 
 __all__ = [
     "PAPER_DELAY_MAX",
@@ -449,6 +448,8 @@ class TraceDelay:
         TraceDelay
             The trace.
         """
+        import pandas as pd
+
         try:
             table = pd.read_csv(path)
         except (OSError, ValueError, pd.errors.ParserError) as error:

@@ -50,6 +50,12 @@ def _absolute(q: np.ndarray) -> np.ndarray:
     return np.cumsum(q, axis=-1)
 
 
+def _relative_sines(q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``sin(phi_i - phi_j)`` ``(..., n, n)`` and the absolute link rates ``phi'`` ``(..., n)``."""
+    phi = _absolute(np.asarray(q, dtype=float))
+    return np.sin(phi[..., :, None] - phi[..., None, :]), _absolute(np.asarray(dq, dtype=float))
+
+
 def _to_joint(matrix_abs: np.ndarray) -> np.ndarray:
     """Map ``X_abs`` to ``T^T X_abs T`` (suffix sums over both axes)."""
     suffix_rows = np.flip(np.cumsum(np.flip(matrix_abs, -2), -2), -2)
@@ -110,10 +116,8 @@ def coriolis_matrix(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray
     ndarray, shape (..., n, n)
         The matrix ``C``; the Coriolis torque is ``C @ dq``.
     """
-    phi = _absolute(np.asarray(q, dtype=float))
-    dphi = _absolute(np.asarray(dq, dtype=float))
-    diff = phi[..., :, None] - phi[..., None, :]
-    return _to_joint(inertia_coefficients(arm) * np.sin(diff) * dphi[..., None, :])
+    sines, dphi = _relative_sines(q, dq)
+    return _to_joint(inertia_coefficients(arm) * sines * dphi[..., None, :])
 
 
 def mass_matrix_derivative(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -131,11 +135,8 @@ def mass_matrix_derivative(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.
     ndarray, shape (..., n, n)
         The symmetric matrix ``M'``; ``M' - 2C`` is skew-symmetric (:func:`coriolis_matrix`).
     """
-    phi = _absolute(np.asarray(q, dtype=float))
-    dphi = _absolute(np.asarray(dq, dtype=float))
-    diff = phi[..., :, None] - phi[..., None, :]
-    ddiff = dphi[..., :, None] - dphi[..., None, :]
-    return _to_joint(-inertia_coefficients(arm) * np.sin(diff) * ddiff)
+    sines, dphi = _relative_sines(q, dq)
+    return _to_joint(-inertia_coefficients(arm) * sines * (dphi[..., :, None] - dphi[..., None, :]))
 
 
 def kinetic_energy(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:

@@ -368,11 +368,13 @@ class SafetyLayer:
             raise ValueError("the reference projection needs finite actions")
         problem, a, a_raw, a_prev = self._qp_problem(rate)
         a_raw.value, a_prev.value = raw, centre
-        # The QP is small and well scaled; Clarabel's equilibration made it stall at some
-        # projections onto a vertex (for example of [76, 118, 118, 118] on the default set).
-        problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12,
-                      tol_feas=1e-12, tol_ktratio=1e-10, equilibrate_enable=False)
-        if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        solved = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+        for equilibrate in (True, False):  # each setting stalls at a few projections on a vertex
+            problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12,
+                          tol_feas=1e-12, tol_ktratio=1e-10, equilibrate_enable=equilibrate)
+            if problem.status in solved:
+                break
+        else:
             raise ValueError(f"reference projection failed: {problem.status}")
         g, h = self.polytope.G, self.polytope.h
         if rate:

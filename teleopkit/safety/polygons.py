@@ -61,8 +61,13 @@ def _in_polygon(x: float, y: float, joint: int, rows: np.ndarray) -> bool:
 @_inline
 def _nearest_on_edges(x: float, y: float, polygons: np.ndarray, p: int,
                       k: int) -> tuple[float, float]:
-    """Nearest point to ``(x, y)`` on the edges of polygon ``polygons[p, :k]``."""
-    best, bx, by = math.inf, polygons[p, 0, 0], polygons[p, 0, 1]
+    """Nearest point to ``(x, y)`` on the edges of polygon ``polygons[p, :k]``.
+
+    Candidates are compared by the sign of ``|c - x|^2 - |b - x|^2 = (c - b) . (c + b - 2 x)``,
+    not by their squared distances: two candidates a micro-unit apart, far from ``x``, have
+    squared distances that agree to every digit, and comparing those picked either.
+    """
+    bx, by = polygons[p, 0, 0], polygons[p, 0, 1]
     for e in range(k):
         f = (e + 1) % k
         ax, ay = polygons[p, e, 0], polygons[p, e, 1]
@@ -72,9 +77,8 @@ def _nearest_on_edges(x: float, y: float, polygons: np.ndarray, p: int,
         if length2 > 0.0:
             t = min(1.0, max(0.0, ((x - ax) * dx + (y - ay) * dy) / length2))
         px, py = ax + t * dx, ay + t * dy
-        d = (px - x) ** 2 + (py - y) ** 2
-        if d < best:
-            best, bx, by = d, px, py
+        if (px - bx) * (px + bx - 2.0 * x) + (py - by) * (py + by - 2.0 * y) < 0.0:
+            bx, by = px, py
     return bx, by
 
 

@@ -10,12 +10,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from teleopkit.sim.divergence import Divergence, position_magnitude
 from teleopkit.sim.state import StateLayout
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from teleopkit.sim.trajectory import StepResult
 
 __all__ = ["RunningMetrics", "error_metrics"]
@@ -37,6 +38,8 @@ def error_metrics(t: np.ndarray, errors: dict[str, np.ndarray]) -> pd.DataFrame:
         One row per scenario, columns ``rms_<name>``, ``iae_<name>``, ``max_<name>`` computed on the
         Euclidean norm over joints (RMS and IAE by the trapezoidal rule over ``t``).
     """
+    import pandas as pd  # tables only when asked for: ``teleopkit simulate`` needs none
+
     duration = float(t[-1] - t[0])
     columns: dict[str, np.ndarray] = {}
     for name, error in errors.items():
@@ -112,6 +115,8 @@ class RunningMetrics:
                    "iae_damp": self.sums[3], "max_damp": self.maxima[1]}
         for name, values in columns.items():
             columns[name] = np.where(self.finite, values, np.inf)
+        import pandas as pd
+
         verdict = (divergence or Divergence()).assess(np.concatenate(self.magnitude),
                                                       self.finite, self.t)
         return pd.DataFrame(columns | verdict)

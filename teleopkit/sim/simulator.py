@@ -11,10 +11,9 @@ shares the model; the batch axis comes first in every array.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import pandas as pd
 
 from teleopkit.delays.profiles import DelayProfile
 from teleopkit.delays.spec import parse_delay
@@ -26,7 +25,10 @@ from teleopkit.sim.state import StateLayout
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
 from teleopkit.sim.trajectory import StepResult, Trajectory
 
-__all__ = ["Simulator", "check_gains", "simulate"]
+__all__ = ["Simulator", "check_gains", "simulate", "simulate_trajectory"]
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 Backend = Literal["compiled", "numpy"]
 
@@ -246,11 +248,12 @@ class Simulator:
         return Trajectory.join(parts, gains)
 
 
-def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
-             delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
-             params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
-             control_period: float = CONTROL_PERIOD) -> pd.DataFrame:
-    """Simulate one scenario and return it as a table.
+def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
+                        duration: float = 40.0,
+                        delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+                        params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
+                        control_period: float = CONTROL_PERIOD) -> Trajectory:
+    """Simulate one scenario; the arguments of :func:`simulate`, the run as a trajectory.
 
     Parameters
     ----------
@@ -272,15 +275,8 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
 
     Returns
     -------
-    pandas.DataFrame
-        Columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i, dtheta_i, Tl, Tr, ql_delayed_i,
-        theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i`` every control period.
-
-    Examples
-    --------
-    >>> table = simulate((10.0, 30.0), duration=1.0, delay="constant:0.2")
-    >>> len(table), float(table["t"].iloc[-1])
-    (101, 1.0)
+    Trajectory
+        The run of one scenario.
     """
     params = params if params is not None else paper_setup()
     rng = np.random.default_rng(seed)
@@ -291,4 +287,31 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
         gains = np.asarray(gains, dtype=float)
         action = np.repeat(gains, params.n_joints) if gains.shape == (2,) else gains
     sim = Simulator(Scenario(params, forward, backward, reference), dt, control_period)
-    return sim.run(duration, action).to_frame()
+    return sim.run(duration, action)
+
+
+def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
+             delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+             params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
+             control_period: float = CONTROL_PERIOD) -> pd.DataFrame:
+    """Simulate one scenario and return it as a table.
+
+    Parameters
+    ----------
+    gains, duration, delay, seed, params, dt, control_period
+        As for :func:`simulate_trajectory`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i, dtheta_i, Tl, Tr, ql_delayed_i,
+        theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i`` every control period.
+
+    Examples
+    --------
+    >>> table = simulate((10.0, 30.0), duration=1.0, delay="constant:0.2")
+    >>> len(table), float(table["t"].iloc[-1])
+    (101, 1.0)
+    """
+    return simulate_trajectory(gains, duration, delay, seed, params, dt,
+                               control_period).to_frame()

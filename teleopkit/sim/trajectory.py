@@ -9,12 +9,15 @@ scenario. States follow :class:`~teleopkit.sim.state.StateLayout`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from teleopkit.sim.metrics import error_metrics
 from teleopkit.sim.state import StateLayout
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["StepResult", "Trajectory"]
 
@@ -106,8 +109,8 @@ class Trajectory(StepResult):
         """RMS, IAE and maximum of the tracking and damping errors, one row per scenario."""
         return error_metrics(self.t, {"track": self.e_track, "damp": self.e_damp})
 
-    def to_frame(self, scenario: int = 0) -> pd.DataFrame:
-        """One scenario as a table with columns ``t, ql_i, qr_i, theta_i, ..., e_damp_i``.
+    def columns(self, scenario: int = 0) -> dict[str, np.ndarray]:
+        """One scenario as named columns ``t, ql_i, qr_i, theta_i, ..., Kr_i, Br_i``.
 
         Parameters
         ----------
@@ -116,10 +119,9 @@ class Trajectory(StepResult):
 
         Returns
         -------
-        pandas.DataFrame
-            One row per recorded time, columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i,
-            dtheta_i, Tl, Tr, ql_delayed_i, theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i``
-            (``i`` the joint, from 1).
+        dict of str to ndarray, shape (P,)
+            ``t, ql_i, dql_i, qr_i, dqr_i, theta_i, dtheta_i, Tl, Tr, ql_delayed_i,
+            theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i`` (``i`` the joint, from 1).
         """
         layout = self.layout
         n = layout.n_joints
@@ -139,4 +141,21 @@ class Trajectory(StepResult):
                              ("Kr", self.gains[:, scenario, :n]),
                              ("Br", self.gains[:, scenario, n:])):
             columns.update({f"{name}_{i + 1}": signal[:, i] for i in range(n)})
-        return pd.DataFrame(columns)
+        return columns
+
+    def to_frame(self, scenario: int = 0) -> pd.DataFrame:
+        """One scenario as a table: the columns of :meth:`columns`, one row per recorded time.
+
+        Parameters
+        ----------
+        scenario : int
+            Index of the scenario in the batch, from 0.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The table.
+        """
+        import pandas as pd
+
+        return pd.DataFrame(self.columns(scenario))
