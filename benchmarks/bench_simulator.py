@@ -1,4 +1,4 @@
-"""Simulator throughput and accuracy, side by side: the compiled kernel, the numpy reference
+"""Simulator throughput and accuracy, side by side: the compiled kernel, the numpy integrator
 backend and jitcdde on the same model.
 
 Run: ``python benchmarks/bench_simulator.py [--quick]``. Prints one table (see
@@ -188,8 +188,8 @@ def main() -> None:
         rows[f"env-steps/s, batch {batch}"] = {
             name: throughput("compiled", batch, PERIODS, repeat, dt)
             for name, dt in columns.items()}
-        rows[f"env-steps/s, batch {batch}"]["reference 2.5 ms"] = throughput(
-            "reference", batch, 1 if args.quick else 2, 1)
+        rows[f"env-steps/s, batch {batch}"]["numpy 2.5 ms"] = throughput(
+            "numpy", batch, 1 if args.quick else 2, 1)
 
     t_fine, fine = run_compiled(FINE_DT)
     rows["40 s episode, s"] = {}
@@ -199,7 +199,7 @@ def main() -> None:
             lambda dt=dt: Simulator(paper_scenarios(0, 1), dt=dt).run(EPISODE, chunk=EPISODE),
             repeat)
         rows["max position error, rad"][name] = float(np.abs(run_compiled(dt)[1] - fine).max())
-    rows["max position error, rad"]["reference 2.5 ms"] = rows["max position error, rad"][
+    rows["max position error, rad"]["numpy 2.5 ms"] = rows["max position error, rad"][
         "compiled 2.5 ms"]  # the backends agree to 1e-10 (tests/test_kernel.py)
     rows["memory per scenario, bytes"] = {name: memory_per_scenario(4096, PERIODS, dt)
                                           for name, dt in columns.items()}
@@ -214,7 +214,7 @@ def main() -> None:
     for batch in BATCHES:  # one scenario at a time: its rate does not grow with the batch
         rows[f"env-steps/s, batch {batch}"]["jitcdde"] = jit_rate
 
-    table = pd.DataFrame(rows).T[[*columns, "reference 2.5 ms", "jitcdde"]]
+    table = pd.DataFrame(rows).T[[*columns, "numpy 2.5 ms", "jitcdde"]]
     accurate = f"compiled {ACCURATE_DT * 1e3:g} ms"
     speedup = table[accurate] / table["jitcdde"]
     speedup["40 s episode, s"] = 1.0 / speedup["40 s episode, s"]
