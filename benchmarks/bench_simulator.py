@@ -99,10 +99,11 @@ class Jitcdde:
 
         self._jitcdde = jitcdde
         n = params.n_joints
-        delay = PAPER_C0 + sum(
+        delay = (PAPER_C0 + sum(
             a * symengine.sin(2 * math.pi * k * PAPER_F0 * t)
             + b * symengine.cos(2 * math.pi * k * PAPER_F0 * t)
             for k, (a, b) in enumerate(zip(PAPER_SIN, PAPER_COS, strict=True), start=1))
+            ) / PAPER_DELAY_MAX
         op = params.operator
         ql, dql = [y(i) for i in range(n)], [y(n + i) for i in range(n)]
         qr, dqr = [y(2 * n + i) for i in range(n)], [y(3 * n + i) for i in range(n)]
@@ -122,7 +123,7 @@ class Jitcdde:
             motor.append((tau_r + spring) / params.joints.rotor_inertia[i])
         f = [*dql, *self._two_link(params.local_arm, ql, dql, local), *dqr,
              *self._two_link(params.remote_arm, qr, dqr, link), *dth, *motor]
-        self.dde = jitcdde(f, max_delay=PAPER_DELAY_MAX, verbose=False)
+        self.dde = jitcdde(f, max_delay=1.0, verbose=False)
         init = params.initial
         self.initial = np.concatenate([init.local, np.zeros(n), init.remote, np.zeros(n),
                                        init.motor, np.zeros(n)])

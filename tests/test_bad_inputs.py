@@ -82,9 +82,10 @@ CLI_CASES = [
     ([*CERT, "--tl-max", "0"], no_setup,
      "delay bound T_l* must be positive and finite, got 0.0"),
     ([*CERT, "--gain-variation", "rate:x"], no_setup,
-     "gain variation rate:R needs a number, got 'rate:x'"),
+     "gain variation rate: 'x' is not a number"),
     ([*CERT, "--gain-variation", "switching"], no_setup,
-     "the closed form (nuno) covers frozen gains only, not switching gains"),
+     "the closed form (nuno) covers frozen, scheduled:L and tank gains, not switching gains; "
+     "certify those with the LMIs (method lmi)"),
     # campaign: spec files, outputs, options, interrupted campaigns
     (["campaign", "{tmp}/missing.yaml", "--out", "{tmp}/o.csv"], no_setup,
      "cannot read campaign spec {tmp}/missing.yaml: No such file or directory"),

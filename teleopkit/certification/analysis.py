@@ -20,6 +20,7 @@ from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation, parse_gain_variation
 from teleopkit.certification.closed_form import certify_closed_form
 from teleopkit.certification.gain_sets import GainBox
+from teleopkit.certification.scheduled import certify_scheduled
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
 __all__ = [
@@ -46,8 +47,14 @@ def _lmi() -> Certifier:
     return certify_lmi
 
 
-_METHODS: dict[str, Callable[[], Certifier]] = {"nuno": lambda: certify_closed_form,
-                                               "lmi": _lmi}
+def _closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                 variation: GainVariation) -> GainCertificate:
+    """The closed-form family: Nuño's condition for frozen gains, its storage for schedules."""
+    certify = certify_scheduled if variation.scheduled else certify_closed_form
+    return certify(params, box, tl_max, tr_max, variation)
+
+
+_METHODS: dict[str, Callable[[], Certifier]] = {"nuno": lambda: _closed_form, "lmi": _lmi}
 
 
 def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
@@ -58,7 +65,8 @@ def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
     method : {"nuno", "lmi", "all"}
         Requested method.
     variation : GainVariation
-        Gain class; the closed form covers frozen gains only.
+        Gain class: the closed form covers frozen and scheduled gains, the LMIs frozen,
+        switching and rate-bounded ones.
 
     Returns
     -------
@@ -69,6 +77,8 @@ def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
         raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
     if method != "all":
         return (method,)
+    if variation.scheduled:
+        return ("nuno",)
     return ("lmi", "nuno") if variation.kind == "frozen" else ("lmi",)
 
 

@@ -1,4 +1,9 @@
-"""The gain certificate: a verdict on a box of remote gains, as an object and as JSON."""
+"""The gain certificate: a verdict on a box of remote gains, as an object and as JSON.
+
+A certificate names what it certifies: the plant (:func:`~teleopkit.model.params.plant_record`,
+with a fingerprint), the delay bounds, the gain class and the box. :meth:`GainCertificate.check`
+refuses it, in one line, for another plant or for delays that can exceed its bounds.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from teleopkit.certification.classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.model.params import TeleoperatorParams, plant_mismatch
 
 __all__ = ["GainCertificate"]
 
@@ -21,9 +28,10 @@ class GainCertificate:
     certified : bool
         Whether every gain of the box (varying as ``gain_variation`` says) is certified stable.
     method : str
-        Certification method (``"nuno"``).
+        Certification method (``"nuno"`` or ``"lmi"``).
     gain_variation : str
-        ``"frozen"``, ``"switching"`` or ``"rate:R"``.
+        The gain class (:mod:`teleopkit.certification.classes`), for example ``"frozen"`` or
+        ``"scheduled:1"``.
     delay_bounds : tuple of float
         ``(T_l*, T_r*)``.
     delay_margin : float
@@ -40,6 +48,8 @@ class GainCertificate:
         When not certified: the violating vertex and condition.
     details : dict
         Method-specific data (for the LMI, the solver's certificate as JSON-ready data).
+    plant : dict
+        The plant certified (:func:`~teleopkit.model.params.plant_record`).
     """
 
     certified: bool
@@ -53,6 +63,40 @@ class GainCertificate:
     assumptions: tuple[str, ...]
     violation: str | None = None
     details: dict[str, Any] = field(default_factory=dict)
+    plant: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def variation(self) -> GainVariation:
+        """The gain class, parsed."""
+        return parse_gain_variation(self.gain_variation)
+
+    def check(self, params: TeleoperatorParams, forward_bound: float | None = None,
+              backward_bound: float | None = None) -> None:
+        """Refuse the certificate for another plant or for delays beyond its bounds.
+
+        Parameters
+        ----------
+        params : TeleoperatorParams
+            The plant it is to be used on.
+        forward_bound, backward_bound : float, optional
+            Declared bounds of the delay profiles in use (seconds).
+
+        Raises
+        ------
+        ValueError
+            One line naming the difference.
+        """
+        if not self.plant:
+            raise ValueError("the certificate names no plant; certify again with this teleopkit")
+        mismatch = plant_mismatch(self.plant, params)
+        if mismatch is not None:
+            raise ValueError(mismatch)
+        for name, bound, certified in (("forward", forward_bound, self.delay_bounds[0]),
+                                       ("backward", backward_bound, self.delay_bounds[1])):
+            if bound is not None and bound > certified:
+                raise ValueError(f"the {name} delay can reach {bound:.6g} s, beyond the "
+                                 f"certificate's bound {certified:g} s (delays in seconds: a "
+                                 "value in milliseconds needs the ms unit)")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (what ``teleopkit certify --json`` prints)."""
@@ -71,6 +115,7 @@ class GainCertificate:
             "assumptions": list(self.assumptions),
             "violation": self.violation,
             "details": self.details,
+            "plant": self.plant,
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -111,7 +156,7 @@ class GainCertificate:
                        tuple(data["delay_bounds"]), math.inf if margin == "inf" else float(margin),
                        box, GainPolytope.from_dict(data["polytope"]),
                        bool(data["polytope_certified"]), tuple(data["assumptions"]),
-                       data["violation"], dict(data["details"]))
+                       data["violation"], dict(data["details"]), dict(data.get("plant", {})))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
 

@@ -1,7 +1,23 @@
 """Gain classes: how the remote gains may vary inside a certified set.
 
-``frozen``: every constant gain of the set; ``switching``: gains changing arbitrarily fast
-inside it; ``rate:R``: gains whose rate of change is at most ``R`` per second.
+=================  ================================================================================
+class              what the remote gains may do
+=================  ================================================================================
+``frozen``         stay constant (every constant gain of the set is certified)
+``switching``      change arbitrarily fast inside the set
+``rate:R``         change by at most ``R`` gain units per second (certified as switching: the plant
+                   holds each gain over a control period, so held gains still jump)
+``scheduled:L``    the proportional gains share the local gains' shape,
+                   ``K_r(t) = kappa(t) K_l / K_l^1``; ``kappa`` may rise freely and fall by a total
+                   log-ratio ``sum ln(kappa_- / kappa_+) <= L`` per episode; the damping gains
+                   switch freely inside the cone ``B_r^i >= rho_i K_r^i``
+``tank[:T0]``      as ``scheduled``, with every fall of ``kappa`` paid from an energy tank that
+                   starts at ``T0`` and is refilled by the dissipation the storage proves (needs
+                   the remote arm's stored energy to be measured)
+=================  ================================================================================
+
+The two last classes are proven on the nonlinear teleoperator by one Lyapunov–Krasovskii storage
+(:mod:`teleopkit.certification.storage`); the safety layer enforces them at every control step.
 """
 
 from __future__ import annotations
@@ -9,7 +25,24 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["GainVariation", "parse_gain_variation"]
+__all__ = ["KINDS", "GainVariation", "parse_gain_variation"]
+
+KINDS = ("frozen", "switching", "rate", "scheduled", "tank")
+"""The gain classes."""
+
+_SYNTAX = "frozen, switching, rate:R, scheduled:L or tank[:T0]"
+
+_DESCRIPTIONS = {
+    "frozen": "constant remote gains: each gain of the set, held for the whole run",
+    "switching": "remote gains switching arbitrarily fast inside the set",
+    "rate": "remote gains changing by at most {value:g} per second (certified as switching)",
+    "scheduled": ("remote stiffness of the local gains' shape, rising freely and falling by a log "
+                  "budget of {value:g} per episode; damping switching freely in the cone "
+                  "B_r >= rho K_r"),
+    "tank": ("remote stiffness of the local gains' shape, falls paid from an energy tank (initial "
+             "level {value:g}) refilled by the proven dissipation; damping switching freely in "
+             "the cone B_r >= rho K_r"),
+}
 
 
 @dataclass(frozen=True)
@@ -18,46 +51,89 @@ class GainVariation:
 
     Parameters
     ----------
-    kind : {"frozen", "switching", "rate"}
-        Constant gains, arbitrarily fast changes, or changes of bounded rate.
-    rate : float
-        Largest rate of change (gain units per second) for ``kind="rate"``.
+    kind : {"frozen", "switching", "rate", "scheduled", "tank"}
+        The class (see the module docstring).
+    value : float
+        The class's number: the rate bound ``R`` (gain units per second) for ``rate``, the log
+        budget ``L`` for ``scheduled``, the initial tank level ``T0`` for ``tank``; unused
+        otherwise.
     """
 
     kind: str = "frozen"
-    rate: float = math.inf
+    value: float = math.nan
 
     def __post_init__(self) -> None:
-        if self.kind not in ("frozen", "switching", "rate"):
-            raise ValueError(f"gain variation must be frozen, switching or rate:R, got "
-                             f"{self.kind!r}")
-        if self.kind == "rate" and not (math.isfinite(self.rate) and self.rate > 0):
-            raise ValueError(f"gain rate bound must be positive and finite, got {self.rate}")
+        if self.kind not in KINDS:
+            raise ValueError(f"gain variation must be {_SYNTAX}, got {self.kind!r}")
+        value = float(self.value)
+        if self.kind == "rate" and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"gain variation rate:R needs a positive finite rate, got {value:g}")
+        if self.kind == "scheduled" and not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"gain variation scheduled:L needs a finite log budget L >= 0, "
+                             f"got {value:g}")
+        if self.kind == "tank":
+            value = 0.0 if math.isnan(value) else value
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"gain variation tank:T0 needs a finite initial level T0 >= 0, "
+                                 f"got {value:g}")
+        object.__setattr__(self, "value", value)
+
+    @property
+    def rate(self) -> float:
+        """The rate bound of a ``rate:R`` class (``inf`` for every other class)."""
+        return self.value if self.kind == "rate" else math.inf
+
+    @property
+    def scheduled(self) -> bool:
+        """Whether the class is enforced with run-time state (``scheduled`` and ``tank``)."""
+        return self.kind in ("scheduled", "tank")
+
+    @property
+    def covers_changes(self) -> bool:
+        """Whether gains may change from one control period to the next."""
+        return self.kind != "frozen"
+
+    def describe(self) -> str:
+        """The class in plain words (what the command line prints)."""
+        return _DESCRIPTIONS[self.kind].format(value=self.value)
 
     def __str__(self) -> str:
-        return f"rate:{self.rate:g}" if self.kind == "rate" else self.kind
+        if self.kind in ("rate", "scheduled"):
+            return f"{self.kind}:{self.value:g}"
+        if self.kind == "tank" and self.value > 0:
+            return f"tank:{self.value:g}"
+        return self.kind
 
 
 def parse_gain_variation(text: str) -> GainVariation:
-    """Parse ``frozen``, ``switching`` or ``rate:R``.
+    """Parse ``frozen``, ``switching``, ``rate:R``, ``scheduled:L`` or ``tank[:T0]``.
 
     Parameters
     ----------
     text : str
-        The gain class: ``frozen``, ``switching`` or ``rate:R`` with ``R`` the largest rate of
-        change in gain units per second.
+        The gain class, as :class:`GainVariation` prints it.
 
     Returns
     -------
     GainVariation
-        The parsed gain class; raises ValueError on anything else.
+        The parsed gain class.
+
+    Raises
+    ------
+    ValueError
+        One line naming the bad class or number.
     """
-    kind, _, rate = text.partition(":")
-    if kind == "rate":
-        try:
-            return GainVariation("rate", float(rate))
-        except ValueError:
-            raise ValueError(f"gain variation rate:R needs a number, got {text!r}") from None
-    if rate:
-        raise ValueError(f"gain variation must be frozen, switching or rate:R, got {text!r}")
-    return GainVariation(kind)
+    kind, colon, number = str(text).strip().partition(":")
+    if kind not in KINDS:
+        raise ValueError(f"gain variation must be {_SYNTAX}, got {text!r}")
+    if kind in ("frozen", "switching") and colon:
+        raise ValueError(f"gain variation {kind} takes no number, got {text!r}")
+    if kind in ("rate", "scheduled") and not number:
+        raise ValueError(f"gain variation {kind} needs a number ({kind}:N), got {text!r}")
+    if not colon:
+        return GainVariation(kind)
+    try:
+        value = float(number)
+    except ValueError:
+        raise ValueError(f"gain variation {kind}: {number!r} is not a number") from None
+    return GainVariation(kind, value)

@@ -21,17 +21,24 @@ from teleopkit.certification.bounds import check_delay_bounds
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.params import TeleoperatorParams, plant_record
 
-__all__ = ["certify_closed_form", "nuno_delay_margin", "nuno_joint_margins", "nuno_polytope",
-           "nuno_slack", "worst_vertex"]
+__all__ = ["ASSUMPTIONS", "RATIO_CAVEAT", "certify_closed_form", "nuno_delay_margin",
+           "nuno_joint_margins", "nuno_polytope", "nuno_slack", "worst_vertex"]
 
 ASSUMPTIONS = (
     "nonlinear teleoperator with elastic remote joints (no linearisation)",
-    "any passive operator and environment",
+    "any passive operator and environment (torque-controlled arms, no torque saturation)",
     "time-varying delays 0 <= T_i(t) <= T_i*, derivative unrestricted",
     "constant (frozen) remote gains",
 )
+
+RATIO_CAVEAT = (
+    "proven (Nuño et al.) for K_r of the shape of K_l (the same ratio K_r^i / K_l^i on every "
+    "joint); other per-joint ratios are applied without a published proof for the nonlinear "
+    "plant, checked on the linearisation by LMI covers and on the nonlinear plant by "
+    "falsification only")
+"""Added to a frozen closed-form certificate whose box allows different per-joint ratios."""
 
 
 def _gain_products(params: TeleoperatorParams,
@@ -172,8 +179,8 @@ def certify_closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float,
         Verdict at the worst vertex, the admissible polytope and the box's delay margin.
     """
     if variation.kind != "frozen":
-        raise ValueError("the closed form (nuno) covers frozen gains only, not "
-                         f"{variation} gains")
+        raise ValueError(f"the closed form (nuno) covers frozen, scheduled:L and tank gains, not "
+                         f"{variation} gains; certify those with the LMIs (method lmi)")
     worst = worst_vertex(box)
     slack = nuno_slack(params, worst, tl_max, tr_max)
     certified = bool(np.all(slack > 0))
@@ -182,7 +189,10 @@ def certify_closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float,
         i = int(np.argmin(slack))
         violation = (f"joint {i + 1} at K_r = {worst[i]:g}, B_r = {worst[box.n_joints + i]:g}: "
                      f"4 B_l B_r - (T_l*+T_r*)^2 K_l K_r = {slack[i]:.6g} <= 0")
+    ratios = np.array(box.kr) / np.asarray(params.local_gains.stiffness)[:, None]
+    one_ratio = box.n_joints == 1 or bool(np.allclose(ratios, ratios[0, 0]))
+    assumptions = ASSUMPTIONS if one_ratio else (*ASSUMPTIONS, RATIO_CAVEAT)
     return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
                            nuno_delay_margin(params, box), box,
-                           nuno_polytope(params, box, tl_max, tr_max), True, ASSUMPTIONS,
-                           violation, {"slack": slack.tolist()})
+                           nuno_polytope(params, box, tl_max, tr_max), True, assumptions,
+                           violation, {"slack": slack.tolist()}, plant_record(params))

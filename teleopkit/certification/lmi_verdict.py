@@ -22,7 +22,7 @@ from teleopkit.certification.lmi import (
     lmi_delay_margin,
     vertex_certificate,
 )
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.params import TeleoperatorParams, plant_record
 
 __all__ = ["MARGIN_BUDGET", "certify_lmi"]
 
@@ -97,6 +97,9 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     GainCertificate
         Verdict, certified polytope, delay margin and the solver's data in ``details``.
     """
+    if variation.scheduled:
+        raise ValueError(f"the LMI method covers frozen, switching and rate:R gains, not "
+                         f"{variation}; certify {variation} with the closed form (nuno)")
     kind = "frozen" if variation.kind == "frozen" else "switching"
     whole = GainPolytope.from_box(box)
     verdict = set_certificate(params, whole, tl_max, tr_max, kind, method)
@@ -129,7 +132,8 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
                "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
                "cells": len(verdict.cells), "solves": verdict.solves, **margin_details}
     return GainCertificate(verdict.certified, "lmi", str(variation), (tl_max, tr_max), margin,
-                           box, polytope, polytope_certified, assumptions, violation, details)
+                           box, polytope, polytope_certified, assumptions, violation, details,
+                           plant_record(params))
 
 
 def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, method: str,

@@ -16,7 +16,9 @@ Observation (``7 n`` values, the paper's Section III with the damping error writ
     [theta_r, theta_r', q_l(t - T_l), e_track, int e_track, e_damp, int e_damp]
 
 with ``e_track = theta_r - q_l(t - T_l)`` and ``e_damp = theta_r - q_r``. At ``t = 0`` the delayed
-signal is the constant past ``q_l(0)``.
+signal is the constant past ``q_l(0)``. Under a scheduled certificate (``scheduled:L`` or
+``tank``) the safety layer keeps a budget or a tank, whose level is appended (``7 n + 1`` values)
+and reported in ``info["schedule"]``: the set of each step depends on it.
 
 Each episode draws a scenario with :func:`~teleopkit.sim.scenarios.paper_scenarios` from the
 environment's seeded generator (operator reference gains and delay scales). The time limit is a
@@ -182,7 +184,7 @@ def observation(state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    state : ndarray, shape (B, 8 n)
+    state : ndarray, shape (B, 12 n)
         Simulator states (:class:`~teleopkit.sim.state.StateLayout`).
     delayed_ql : ndarray, shape (B, n)
         Local positions as received by the remote side, ``q_l(t - T_l(t))``.
@@ -292,7 +294,12 @@ class TeleopBatch:
             raise ValueError(f"scenario has {scenario.batch} runs, the batch {self.batch}")
         state = self.loop.start(Simulator(scenario, self.config.dt, self.config.control_period))
         self.steps = 0
-        return observation(state, StateLayout.of(state).get(state, "ql"))
+        return self._observe(state, StateLayout.of(state).get(state, "ql"))
+
+    def _observe(self, state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
+        """The paper's observation, then the safety layer's run-time state (if it keeps one)."""
+        return np.concatenate([observation(state, delayed_ql),
+                               self.layer.run_time_state(self.batch)], axis=1)
 
     def step(self, raw: np.ndarray) -> BatchStep:
         """Project, simulate and score one period.
@@ -312,7 +319,7 @@ class TeleopBatch:
         applied = projection.action
         self.steps += 1
         state = result.state[0]
-        obs = observation(state, result.delayed[0, :, 0])
+        obs = self._observe(state, result.delayed[0, :, 0])
         reward = self.config.weights.reward(result.e_track[0], result.e_damp[0], applied)
         bound = self.config.state_bound
         failed = ~np.all(np.abs(state) <= bound, axis=1)
@@ -325,20 +332,23 @@ class TeleopBatch:
                 "fallback": projection.fallback != 0, "fallback_flags": projection.fallback,
                 "active_constraints": projection.active, "time": np.full(self.batch, result.t[0]),
                 "delays": result.delays[0]}
+        if self.layer.stateful:
+            info["schedule"] = projection.schedule
         return BatchStep(obs, reward, failed, truncated, info, result)
 
 
-def _spaces(config: FlexTeleopConfig,
-            certificate: GainCertificate) -> tuple[spaces.Box, spaces.Box]:
+def _spaces(config: FlexTeleopConfig, core: TeleopBatch) -> tuple[spaces.Box, spaces.Box]:
     """Action space (the certificate's gain box) and observation space of one scenario.
 
     Every observation entry is a state entry or the difference of two, and the episode ends
-    once a state entry exceeds ``state_bound``, so observations lie within twice that bound.
+    once a state entry exceeds ``state_bound``, so observations lie within twice that bound; a
+    scheduled class appends its budget or tank level.
     """
-    box = certificate.box
+    box = core.certificate.box
     limit = 2 * config.state_bound
+    size = 7 * box.n_joints + core.layer.run_time_state(1).shape[1]
     action = spaces.Box(box.lower, box.upper, dtype=np.float64)
-    observation = spaces.Box(-limit, limit, shape=(7 * box.n_joints,), dtype=np.float64)
+    observation = spaces.Box(-limit, limit, shape=(size,), dtype=np.float64)
     return action, observation
 
 
@@ -377,7 +387,7 @@ class FlexTeleopEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._core = TeleopBatch(self.config, 1)
         self.safety_layer = self._core.layer
         self.certificate = self._core.certificate
-        self.action_space, self.observation_space = _spaces(self.config, self.certificate)
+        self.action_space, self.observation_space = _spaces(self.config, self._core)
 
     @property
     def unsafe_actions(self) -> int:
@@ -467,7 +477,7 @@ class FlexTeleopVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._core = TeleopBatch(self.config, num_envs)
         self.safety_layer = self._core.layer
         self.certificate = self._core.certificate
-        single_action, single_observation = _spaces(self.config, self.certificate)
+        single_action, single_observation = _spaces(self.config, self._core)
         self.single_action_space, self.single_observation_space = single_action, single_observation
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.observation_space = batch_space(self.single_observation_space, num_envs)

@@ -70,7 +70,8 @@ from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.rl.networks import Actor, Critic, Standardise
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import Batch
-from teleopkit.rl.torch_projection import TorchProjection
+from teleopkit.rl.torch_projection import torch_projection
+from teleopkit.safety.layer import SafetyLayer
 
 __all__ = ["TD3", "TD3Config"]
 
@@ -194,8 +195,8 @@ class TD3:
         Observation size.
     low, high : ndarray, shape (act_dim,)
         Action box (the environment's action space).
-    polytope : GainPolytope
-        Certified set the environment projects onto (the safety layer's polytope).
+    certified : GainPolytope or SafetyLayer
+        Certified set the environment projects onto (the safety layer, or its polytope).
     config : TD3Config, optional
         Hyperparameters.
     seed : int
@@ -211,7 +212,8 @@ class TD3:
     (2, 4)
     """
 
-    def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray, polytope: GainPolytope,
+    def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
+                 certified: GainPolytope | SafetyLayer,
                  config: TD3Config | None = None, seed: int = 0) -> None:
         self.config = config if config is not None else TD3Config()
         low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
@@ -223,7 +225,7 @@ class TD3:
                                      for _ in range(2))
         self.actor_target = _copy(self.actor)
         self.critic_targets = _copy(self.critics)
-        self.projection = TorchProjection(polytope)
+        self.projection = torch_projection(certified)
         # The fused CPU kernel: same arithmetic as the default, a quarter of the time here.
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=cfg.actor_lr,
                                                 fused=True)
@@ -252,7 +254,7 @@ class TD3:
         """
         space = getattr(env, "single_action_space", env.action_space)
         observation = getattr(env, "single_observation_space", env.observation_space)
-        return cls(observation.shape[0], space.low, space.high, env.safety_layer.polytope,
+        return cls(observation.shape[0], space.low, space.high, env.safety_layer,
                    config, seed)
 
     def _networks(self) -> dict[str, nn.Module]:

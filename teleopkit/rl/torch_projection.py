@@ -1,7 +1,10 @@
 """The safety layer's projection in torch, so that the actor is trained through it.
 
-The map is piecewise affine, so autograd gives its exact Jacobian: identity inside the set, the
-tangent projector on an edge, zero at a vertex.
+The maps are piecewise affine (per-joint polygons) or piecewise rational in the raw action (the
+scheduled classes' coupled set), so autograd gives their exact Jacobians almost everywhere:
+identity inside the set, the tangent projector on an edge, zero at a vertex. The scheduled
+classes' floor on ``kappa`` depends on the run-time state, which is not in the observation: it
+is enforced by the environment, not in this projection (the critic sees the applied action).
 """
 
 from __future__ import annotations
@@ -11,8 +14,29 @@ import torch
 from torch import nn
 
 from teleopkit.certification.gain_sets import GainPolytope
+from teleopkit.safety.layer import SafetyLayer
 
-__all__ = ["TorchProjection"]
+__all__ = ["ScheduledTorchProjection", "TorchProjection", "torch_projection"]
+
+
+def torch_projection(certified: GainPolytope | SafetyLayer) -> nn.Module:
+    """The torch projection onto a certified set.
+
+    Parameters
+    ----------
+    certified : GainPolytope or SafetyLayer
+        A polytope of per-joint polygons, or a safety layer (its set, static part).
+
+    Returns
+    -------
+    torch.nn.Module
+        :class:`ScheduledTorchProjection` for a scheduled layer, else :class:`TorchProjection`.
+    """
+    if isinstance(certified, SafetyLayer):
+        if certified.stateful:
+            return ScheduledTorchProjection(*certified.step_set)  # type: ignore[attr-defined]
+        return TorchProjection(certified.polytope)
+    return TorchProjection(certified)
 
 
 class TorchProjection(nn.Module):
@@ -72,3 +96,61 @@ class TorchProjection(nn.Module):
         outside = (action @ g_t > h).to(action.dtype) @ owner > 0  # (B, n)
         projected = points - outside[..., None] * shift
         return torch.cat([projected[..., 0], projected[..., 1]], dim=-1)
+
+
+class ScheduledTorchProjection(nn.Module):
+    """Exact projection onto the static set of a scheduled class, differentiable by autograd.
+
+    The same map as :class:`~teleopkit.safety.schedule.ScheduleLayer` without the run-time floor:
+    the stiffness ``K_r = kappa s`` minimises the cost with the best damping (the sorted kinks
+    of :mod:`teleopkit.safety.schedule`), then every gain is clipped into its bounds.
+
+    Parameters
+    ----------
+    shape, rho, beta, b_lo, b_hi : ndarray, shape (n,)
+        The common shape, the cone ``B_r^i >= rho_i s_i kappa + beta_i`` and the damping box.
+    kappa_lo, kappa_hi : float
+        The interval of ``kappa``.
+    """
+
+    def __init__(self, shape: np.ndarray, rho: np.ndarray, beta: np.ndarray, b_lo: np.ndarray,
+                 b_hi: np.ndarray, kappa_lo: float, kappa_hi: float) -> None:
+        super().__init__()
+        self.n = len(shape)
+        self.kappa_lo, self.kappa_hi = float(kappa_lo), float(kappa_hi)
+        self._constants = {dtype: tuple(torch.as_tensor(np.asarray(x, dtype=float), dtype=dtype)
+                                        for x in (shape, rho, beta, b_lo, b_hi))
+                           for dtype in (torch.float32, torch.float64)}
+
+    def forward(self, action: torch.Tensor) -> torch.Tensor:
+        """Project actions onto the set.
+
+        Parameters
+        ----------
+        action : torch.Tensor, shape (B, 2 n)
+            Raw gains (float32 or float64).
+
+        Returns
+        -------
+        torch.Tensor, shape (B, 2 n)
+            Projected gains, in the dtype of ``action``.
+        """
+        shape, rho, beta, b_lo, b_hi = self._constants[action.dtype]
+        n = self.n
+        k_raw, b_raw = action[:, :n], action[:, n:]
+        slope = rho * shape
+        kinks, order = torch.sort((torch.maximum(b_raw, b_lo) - beta) / slope, dim=1)
+        gain = torch.gather(slope * (b_raw - beta), 1, order)
+        square = torch.gather((slope * slope).expand_as(b_raw), 1, order)
+        zero = torch.zeros_like(kinks[:, :1])
+        num = (k_raw * shape).sum(1, keepdim=True) + torch.cat([zero, gain.cumsum(1)], 1)
+        den = (shape * shape).sum() + torch.cat([zero, square.cumsum(1)], 1)
+        roots = num / den  # minimiser of each piece, pieces between consecutive kinks
+        ends = torch.cat([kinks, torch.full_like(zero, torch.inf)], 1)
+        starts = torch.cat([torch.full_like(zero, -torch.inf), kinks], 1)
+        first = (roots <= ends).to(torch.int8).argmax(1, keepdim=True)
+        kappa = torch.maximum(roots.gather(1, first), starts.gather(1, first))
+        kappa = kappa.clamp(self.kappa_lo, self.kappa_hi)
+        cone = slope * kappa + beta
+        damping = torch.minimum(torch.maximum(b_raw, torch.maximum(b_lo, cone)), b_hi)
+        return torch.cat([kappa * shape, damping], dim=1)

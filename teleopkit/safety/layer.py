@@ -31,7 +31,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import parse_gain_variation
 from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.safety.polygons import (
     chebyshev_centre,
@@ -65,7 +64,8 @@ class Fallback(enum.IntFlag):
     RATE_INFEASIBLE = 2
 
 
-_FLAGS = tuple(Fallback(value) for value in range(4))
+FLAGS = tuple(Fallback(value) for value in range(4))
+"""The :class:`Fallback` of each integer flag value (a lookup, cheaper than the enum call)."""
 
 
 class Projection(NamedTuple):
@@ -84,6 +84,9 @@ class Projection(NamedTuple):
         Coordinates at their rate bound ``|a - a_prev| = rho T_s``.
     fallback : Fallback or ndarray of int, shape (B,)
         :class:`Fallback` flags (integers for a batch); zero means an exact projection.
+    schedule : float or ndarray, shape (B,)
+        Run-time state left after the step: the log budget (``scheduled:L``) or the tank level
+        (``tank``); NaN for the classes without one.
     """
 
     action: np.ndarray
@@ -91,6 +94,7 @@ class Projection(NamedTuple):
     active: np.ndarray
     rate_active: np.ndarray
     fallback: Fallback | np.ndarray
+    schedule: float | np.ndarray = math.nan
 
 
 class SafetyLayer:
@@ -152,6 +156,10 @@ class SafetyLayer:
         self._centre = self.project(np.concatenate([centres[:, 0], centres[:, 1]])).action
         self._geometry = self._pack(self._centre)
         self._qp: dict[bool, tuple[Any, Any, Any, Any]] = {}
+        self.certificate: GainCertificate | None = None
+
+    stateful = False
+    """Whether the layer keeps run-time state (a budget or a tank) between control steps."""
 
     def _pack(self, centre: np.ndarray) -> tuple[Any, ...]:
         """The kernels' trailing arguments (see :mod:`teleopkit.safety.polygons`)."""
@@ -194,7 +202,8 @@ class SafetyLayer:
         Returns
         -------
         SafetyLayer
-            The layer on the certified polytope, rate-bounded if asked.
+            The layer on the certified polytope, rate-bounded if asked; for a scheduled class a
+            :class:`~teleopkit.safety.schedule.ScheduleLayer`, which keeps the budget or tank.
 
         Raises
         ------
@@ -208,17 +217,54 @@ class SafetyLayer:
                              "build a safety layer on it")
         if not (math.isfinite(period) and period > 0):
             raise ValueError(f"control period must be positive, got {period}")
-        variation = parse_gain_variation(certificate.gain_variation)
-        certified_rate = variation.rate if variation.kind == "rate" else math.inf
-        chosen = certified_rate if rate is None else float(rate)
-        if chosen > certified_rate:
-            raise ValueError(f"rate bound {chosen:g}/s exceeds the certified {certified_rate:g}/s")
-        return cls(certificate.polytope, None if math.isinf(chosen) else chosen * period, tol)
+        variation = certificate.variation
+        if variation.scheduled:
+            from teleopkit.safety.schedule import ScheduleLayer
+
+            return ScheduleLayer(certificate, tol)
+        chosen = variation.rate if rate is None else float(rate)
+        if chosen > variation.rate:
+            raise ValueError(f"rate bound {chosen:g}/s exceeds the certified {variation.rate:g}/s")
+        layer = cls(certificate.polytope, None if math.isinf(chosen) else chosen * period, tol)
+        layer.certificate = certificate
+        return layer
 
     @property
     def dimension(self) -> int:
         """Dimension ``2 n`` of the action space."""
         return self.polytope.dimension
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """What each entry of :attr:`Projection.active` stands for."""
+        return self.polytope.labels
+
+    def reset(self) -> None:
+        """Start an episode (a layer without run-time state keeps nothing)."""
+
+    def observe(self, state: np.ndarray) -> None:
+        """Take the plant's states at a sample (used by layers that measure energy).
+
+        Parameters
+        ----------
+        state : ndarray, shape (B, 12 n)
+            The states at the sample.
+        """
+
+    def run_time_state(self, batch: int) -> np.ndarray:
+        """The run-time state an agent observes beside the plant (none here).
+
+        Parameters
+        ----------
+        batch : int
+            Number of scenarios.
+
+        Returns
+        -------
+        ndarray, shape (B, 0)
+            Empty.
+        """
+        return np.zeros((batch, 0))
 
     def contains(self, actions: np.ndarray) -> np.ndarray:
         """Whether each action lies in the certified set (within ``1e-9``).
@@ -251,9 +297,9 @@ class SafetyLayer:
         Returns
         -------
         tuple of str
-            The polytope's labels of the active rows.
+            The labels of the active constraints (:attr:`labels`).
         """
-        return tuple(label for label, on in zip(self.polytope.labels, active, strict=True) if on)
+        return tuple(label for label, on in zip(self.labels, active, strict=True) if on)
 
     def _actions(self, values: np.ndarray, shape: tuple[int, ...],
                  name: str) -> np.ndarray:
@@ -286,7 +332,7 @@ class SafetyLayer:
         rate_active = np.empty(dim, dtype=np.bool_)
         flags, distance = project_one(raw, prev_array, prev is not None, out, active,
                                        rate_active, *self._geometry)
-        return Projection(out, distance, active, rate_active, _FLAGS[flags])
+        return Projection(out, distance, active, rate_active, FLAGS[flags])
 
     def project_batch(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
         """Project a batch of raw actions in one compiled loop.

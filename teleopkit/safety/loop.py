@@ -49,6 +49,9 @@ class CertifiedLoop:
     def start(self, simulator: Simulator) -> np.ndarray:
         """Begin an episode on ``simulator`` (reset to ``t = 0``); return its initial states.
 
+        The layer's certificate (when it has one) must be for the simulated plant and for delay
+        profiles within its bounds; the layer's run-time state starts afresh.
+
         Parameters
         ----------
         simulator : Simulator
@@ -56,14 +59,26 @@ class CertifiedLoop:
 
         Returns
         -------
-        ndarray, shape (B, 8 n)
+        ndarray, shape (B, 12 n)
             The states at ``t = 0``.
+
+        Raises
+        ------
+        ValueError
+            If the certificate is for another plant or smaller delay bounds.
         """
+        certificate = self.layer.certificate
+        if certificate is not None:
+            scenario = simulator.scenario
+            certificate.check(scenario.params, scenario.forward.bound, scenario.backward.bound)
         simulator.reset()
         self._simulator = simulator
         self._applied = None
         self.unsafe_by_run = np.zeros(simulator.batch, dtype=np.int64)
-        return simulator.state
+        self.layer.reset()
+        state = simulator.state
+        self.layer.observe(state)
+        return state
 
     def step(self, raw: np.ndarray) -> tuple[StepResult, Projection]:
         """Project ``raw`` and simulate one control period with the applied gains.
@@ -88,4 +103,6 @@ class CertifiedLoop:
         self.unsafe_by_run += unsafe
         self.unsafe_actions += int(np.count_nonzero(unsafe))
         self._applied = applied
-        return simulator.advance(applied), projection
+        result = simulator.advance(applied)
+        self.layer.observe(result.state[-1])
+        return result, projection

@@ -38,7 +38,7 @@ def position_magnitude(state: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    state : ndarray, shape (..., 8 n)
+    state : ndarray, shape (..., 12 n)
         States (:class:`~teleopkit.sim.state.StateLayout`).
 
     Returns

@@ -32,11 +32,15 @@ from numba import njit, prange
 
 from teleopkit.model.dynamics import inertia_coefficients
 from teleopkit.model.params import TeleoperatorParams, Wall
+from teleopkit.sim.state import FIELDS
 
-__all__ = ["LANES", "advance", "kernel_model"]
+__all__ = ["BLOCKS", "LANES", "advance", "kernel_model"]
 
 LANES = 32
 """Scenarios per block: the unit of parallel work and the length of the vectorised loops."""
+
+BLOCKS = len(FIELDS)
+"""Blocks of ``n`` values in a state (:class:`~teleopkit.sim.state.StateLayout`)."""
 
 
 # sin and cos on [-pi/4, pi/4] (fdlibm's minimax coefficients) after a three-part Cody-Waite
@@ -215,6 +219,10 @@ def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt
     slopes[b, r, 10, w], slopes[b, r, 11, w] = ddth1, ddth2
     slopes[b, r, 12, w], slopes[b, r, 13, w] = th1 - ql1_delayed, th2 - ql2_delayed
     slopes[b, r, 14, w], slopes[b, r, 15, w] = th1 - qr1, th2 - qr2
+    slopes[b, r, 16, w], slopes[b, r, 17, w] = dql1 * dql1, dql2 * dql2
+    slopes[b, r, 18, w], slopes[b, r, 19, w] = st[b, 16, w], st[b, 17, w]
+    slopes[b, r, 20, w], slopes[b, r, 21, w] = dth1 * dth1, dth2 * dth2
+    slopes[b, r, 22, w], slopes[b, r, 23, w] = st[b, 20, w], st[b, 21, w]
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -308,6 +316,10 @@ def _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt,
         slopes[b, r, 4 * n + i, w] = st[b, 5 * n + i, w]
         slopes[b, r, 6 * n + i, w] = st[b, 4 * n + i, w] - ql
         slopes[b, r, 7 * n + i, w] = st[b, 4 * n + i, w] - st[b, 2 * n + i, w]
+        slopes[b, r, 8 * n + i, w] = st[b, n + i, w] * st[b, n + i, w]
+        slopes[b, r, 9 * n + i, w] = st[b, 8 * n + i, w]
+        slopes[b, r, 10 * n + i, w] = st[b, 5 * n + i, w] * st[b, 5 * n + i, w]
+        slopes[b, r, 11 * n + i, w] = st[b, 10 * n + i, w]
     _arm_acceleration(m, 0, st, b, w, 0, work, slopes, r)
     _arm_acceleration(m, 1, st, b, w, 2 * n, work, slopes, r)
 
@@ -343,7 +355,7 @@ def _transfer(x, xs, b, lo, width, to_block):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _record(hist, slot, xs, b, lo, width):
     """Store the block's channel signals (positions, then velocities) in ring slot ``slot``."""
-    n = xs.shape[1] // 8
+    n = xs.shape[1] // BLOCKS
     for c in range(2):
         for v in range(2 * n):
             for w in range(width):
@@ -375,7 +387,7 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
 def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
              out_delayed):
     batch, dim = x.shape
-    n = dim // 8
+    n = dim // BLOCKS
     length = hist.shape[2]
     blocks = (batch + LANES - 1) // LANES
     # Per-block scratch, allocated outside the parallel loop so that it reaches it as noalias
@@ -398,7 +410,7 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gain
                     _stage_state(xs, slopes, st, b, r, frac * dt, width)
                     # The loops over lanes stay in this parallel body, where LLVM vectorises
                     # them (the arrays are noalias here, not in a separately compiled callee).
-                    if dim == 16:
+                    if dim == 2 * BLOCKS:
                         for w in range(width):
                             _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
                                            frac, dt, st, slopes, b, r, lo, w)

@@ -59,7 +59,7 @@ class RunningMetrics:
 
     Parameters
     ----------
-    state : ndarray, shape (B, 8 n)
+    state : ndarray, shape (B, 12 n)
         The states at ``t = 0`` (the delayed signals then are the constant past).
     """
 

@@ -29,7 +29,7 @@ class NumpyIntegrator:
     ----------
     params : TeleoperatorParams
         The model.
-    state : ndarray, shape (B, 8 n)
+    state : ndarray, shape (B, 12 n)
         Initial state (:class:`~teleopkit.sim.state.StateLayout`).
     dt : float
         Integration step.
@@ -64,7 +64,7 @@ class NumpyIntegrator:
 
         Returns
         -------
-        states : ndarray, shape (P, B, 8 n)
+        states : ndarray, shape (P, B, 12 n)
             State at the end of each period.
         delayed : ndarray, shape (P, B, 2, n)
             ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
@@ -102,7 +102,7 @@ class NumpyIntegrator:
 
         Parameters
         ----------
-        x : ndarray, shape (B, 8 n)
+        x : ndarray, shape (B, 12 n)
             Stage state.
         offset : float
             Stage time after the newest stored sample, in steps.
@@ -115,7 +115,7 @@ class NumpyIntegrator:
 
         Returns
         -------
-        ndarray, shape (B, 8 n)
+        ndarray, shape (B, 12 n)
             The derivative.
         """
         p = self.params
@@ -130,8 +130,11 @@ class NumpyIntegrator:
         ddql = self._acceleration(p.local_arm, ql, dql, tau_h - tau_l)
         ddqr = self._acceleration(p.remote_arm, qr, dqr, -spring - tau_e)
         ddth = (tau_r + spring) / np.array(p.joints.rotor_inertia)
+        get = self.layout.get
         return self.layout.pack(len(x), ql=dql, dql=ddql, qr=dqr, dqr=ddqr, theta=dth,
-                                dtheta=ddth, int_track=th - ql_delayed, int_damp=th - qr)
+                                dtheta=ddth, int_track=th - ql_delayed, int_damp=th - qr,
+                                int_dql2=dql**2, iint_dql2=get(x, "int_dql2"),
+                                int_dtheta2=dth**2, iint_dtheta2=get(x, "int_dtheta2"))
 
     @staticmethod
     def _acceleration(arm: PlanarArm, q: np.ndarray, dq: np.ndarray,

@@ -77,7 +77,7 @@ class Simulator:
     >>> sim = Simulator(paper_scenarios(0, batch=2))
     >>> result = sim.advance(np.tile([10.0, 10.0, 30.0, 30.0], (3, 2, 1)))
     >>> result.state.shape, round(sim.time, 6)
-    ((3, 2, 16), 0.03)
+    ((3, 2, 24), 0.03)
     """
 
     def __init__(self, scenario: Scenario, dt: float = DEFAULT_DT,
@@ -110,7 +110,7 @@ class Simulator:
 
     @property
     def state(self) -> np.ndarray:
-        """Current state, shape ``(B, 8 n)`` (a copy)."""
+        """Current state, shape ``(B, 12 n)`` (a copy)."""
         return (self._numpy.state if self._numpy else self._x).copy()
 
     def initial_state(self) -> np.ndarray:

@@ -1,11 +1,16 @@
 """The simulator's state vector: one named layout for every reader.
 
-A scenario's state is a flat vector of ``8 n`` values (``n`` joints per arm), the blocks in the
+A scenario's state is a flat vector of ``12 n`` values (``n`` joints per arm), the blocks in the
 order of :data:`FIELDS`::
 
-    [q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp]
+    [q_l, q_l', q_r, q_r', theta, theta', int e_track, int e_damp,
+     int q_l'^2, iint q_l'^2, int theta'^2, iint theta'^2]
 
-with ``e_track = theta - q_l(t - T_l)`` and ``e_damp = theta - q_r``. The two delay channels carry
+with ``e_track = theta - q_l(t - T_l)`` and ``e_damp = theta - q_r``. The last four blocks are
+the velocity energies a Lyapunov–Krasovskii storage needs, integrated exactly along the run:
+``I(t) = int_0^t v^2`` and its integral ``int_0^t I`` for ``v = q_l'`` and ``v = theta'`` (per
+joint), from which the storage's double integrals follow at any sample time
+(:mod:`teleopkit.certification.storage`). The two delay channels carry
 ``(q_l, q_l')`` forward and ``(theta, theta')`` backward. :class:`StateLayout` names the blocks so
 that the simulator, the environments, campaigns and falsification never count offsets by hand
 (the compiled kernel, which needs constant offsets, is tested against the numpy integrator that
@@ -21,19 +26,21 @@ import numpy as np
 
 __all__ = ["FIELDS", "Field", "StateLayout"]
 
-Field = Literal["ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track", "int_damp"]
+Field = Literal["ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track", "int_damp",
+                "int_dql2", "iint_dql2", "int_dtheta2", "iint_dtheta2"]
 
 FIELDS: tuple[Field, ...] = ("ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track",
-                             "int_damp")
+                             "int_damp", "int_dql2", "iint_dql2", "int_dtheta2", "iint_dtheta2")
 """Names of the state blocks, in order: local, remote link and motor positions and velocities,
-then the integrated tracking and damping errors."""
+the integrated tracking and damping errors, then the single and double integrals of the squared
+local and motor velocities."""
 
 _CHANNELS: tuple[tuple[Field, Field], ...] = (("ql", "dql"), ("theta", "dtheta"))
 
 
 @dataclass(frozen=True)
 class StateLayout:
-    """Where each block of :data:`FIELDS` sits in a state vector of ``8 n`` values.
+    """Where each block of :data:`FIELDS` sits in a state vector of ``12 n`` values.
 
     Parameters
     ----------
@@ -44,7 +51,7 @@ class StateLayout:
     --------
     >>> layout = StateLayout(2)
     >>> layout.slice("theta"), layout.size
-    (slice(8, 10, None), 16)
+    (slice(8, 10, None), 24)
     """
 
     n_joints: int
@@ -56,11 +63,11 @@ class StateLayout:
 
     @classmethod
     def of(cls, state: np.ndarray) -> StateLayout:
-        """The layout of states whose last axis has ``8 n`` entries.
+        """The layout of states whose last axis has ``12 n`` entries.
 
         Parameters
         ----------
-        state : ndarray, shape (..., 8 n)
+        state : ndarray, shape (..., 12 n)
             States.
 
         Returns
@@ -75,7 +82,7 @@ class StateLayout:
 
     @property
     def size(self) -> int:
-        """Length ``8 n`` of a state vector."""
+        """Length ``12 n`` of a state vector."""
         return len(FIELDS) * self.n_joints
 
     def slice(self, name: Field) -> slice:
@@ -101,7 +108,7 @@ class StateLayout:
 
         Parameters
         ----------
-        state : ndarray, shape (..., 8 n)
+        state : ndarray, shape (..., 12 n)
             States.
         name : str
             A name of :data:`FIELDS`.
@@ -123,7 +130,7 @@ class StateLayout:
 
         Parameters
         ----------
-        state : ndarray, shape (..., 8 n)
+        state : ndarray, shape (..., 12 n)
             States.
         channel : {0, 1}
             0: forward (``q_l, q_l'``); 1: backward (``theta, theta'``).
@@ -148,7 +155,7 @@ class StateLayout:
 
         Returns
         -------
-        ndarray, shape (batch, 8 n)
+        ndarray, shape (batch, 12 n)
             The states.
         """
         state = np.zeros((batch, self.size))

@@ -30,7 +30,7 @@ class StepResult:
     ----------
     t : ndarray, shape (P,)
         End time of each period.
-    state : ndarray, shape (P, B, 8 n)
+    state : ndarray, shape (P, B, 12 n)
         States (:class:`~teleopkit.sim.state.StateLayout`) at each time.
     delayed : ndarray, shape (P, B, 2, n)
         ``q_l(t - T_l)`` and ``theta(t - T_r)``.
@@ -70,7 +70,7 @@ class Trajectory(StepResult):
     ----------
     t : ndarray, shape (P,)
         Recorded times in seconds: ``0`` then the end time of each period.
-    state : ndarray, shape (P, B, 8 n)
+    state : ndarray, shape (P, B, 12 n)
         States at each time (row 0 is the initial state).
     delayed : ndarray, shape (P, B, 2, n)
         ``q_l(t - T_l)`` and ``theta(t - T_r)`` (row 0 holds the constant past, the initial

@@ -1,0 +1,135 @@
+"""Certificates of the scheduled gain classes (``scheduled:L``, ``tank``) on the nonlinear plant.
+
+The remote stiffness has the local gains' shape, ``K_r = kappa S`` (``S = K_l / K_l^1``); the
+damping lies in the cone ``B_r^i >= rho_i K_r^i`` of the closed form; ``kappa`` rises freely and
+falls within a log budget ``L`` per episode (``scheduled:L``) or as an energy tank allows
+(``tank``). The proof is the storage of :mod:`teleopkit.certification.storage`:
+``V(t) <= exp(L) V(0)``, or ``V(t) + tank(t) <= V(0) + T0``. The certified set is the closed-form
+polytope of the box restricted to the common shape; the run-time part of the class (budget or
+tank) is enforced by the safety layer at every control step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+
+from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.classes import GainVariation
+from teleopkit.certification.closed_form import nuno_joint_margins, nuno_polytope
+from teleopkit.certification.gain_sets import GainBox
+from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.model.params import TeleoperatorParams, plant_record
+
+__all__ = ["TANK_REFILL", "certify_scheduled", "kappa_range", "shape_rows"]
+
+TANK_REFILL = 0.5
+"""Fraction of the proven dissipation that refills the tank (and of the storage released when
+``kappa`` rises). Below 1, ``V + tank`` falls by the rest, which keeps the velocities square
+integrable; at 1 it would only stay bounded."""
+
+_COMMON = (
+    "nonlinear teleoperator with elastic remote joints (no linearisation)",
+    "passive operator and environment (torque-controlled arms, no torque saturation)",
+    "time-varying delays 0 <= T_i(t) <= T_i*, derivative unrestricted",
+    "remote gains held between control samples",
+)
+
+
+def kappa_range(storage: ScheduledStorage, box: GainBox) -> tuple[float, float]:
+    """The values of ``kappa`` whose common-shape stiffness lies in the box and the cone.
+
+    Parameters
+    ----------
+    storage : ScheduledStorage
+        Shape and cone.
+    box : GainBox
+        Remote gain ranges.
+
+    Returns
+    -------
+    tuple of float
+        ``(kappa_min, kappa_max)``; empty when ``kappa_min > kappa_max``.
+    """
+    shape, cone = np.array(storage.shape), np.array(storage.cone)
+    low = float(np.max(box.lower[:box.n_joints] / shape))
+    high = float(np.min(np.minimum(box.upper[:box.n_joints] / shape,
+                                   box.upper[box.n_joints:] / (cone * shape))))
+    return low, high
+
+
+def shape_rows(shape: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The rows ``K_r^i = s_i K_r^1`` (two inequalities each) as ``(G, h, labels)``.
+
+    Parameters
+    ----------
+    shape : tuple of float
+        ``s_i``.
+
+    Returns
+    -------
+    tuple
+        Normals ``(2 (n - 1), 2 n)``, zero offsets and labels.
+    """
+    n = len(shape)
+    rows, labels = [], []
+    for i in range(1, n):
+        row = np.zeros(2 * n)
+        row[i], row[0] = 1.0, -shape[i] / shape[0]
+        rows += [row, -row]
+        labels += [f"common shape: K_r{i + 1} <= {shape[i]:g} K_r1",
+                   f"common shape: K_r{i + 1} >= {shape[i]:g} K_r1"]
+    return np.array(rows).reshape(-1, 2 * n), np.zeros(len(rows)), tuple(labels)
+
+
+def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                      variation: GainVariation) -> GainCertificate:
+    """The certificate of a gain box for a scheduled class.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator (positive local gains).
+    box : GainBox
+        Remote gain ranges.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    variation : GainVariation
+        ``scheduled:L`` or ``tank[:T0]``.
+
+    Returns
+    -------
+    GainCertificate
+        Certified when every common-shape gain of the box lies in the cone; the polytope is the
+        box restricted to the common shape and the cone, and ``details`` holds the storage.
+    """
+    if not variation.scheduled:
+        raise ValueError(f"certify_scheduled covers scheduled:L and tank, not {variation}")
+    storage = ScheduledStorage.for_plant(params, tl_max, tr_max)
+    low, high = kappa_range(storage, box)
+    box_high = float(np.min(box.upper[:box.n_joints] / np.array(storage.shape)))
+    polytope = nuno_polytope(params, box, tl_max, tr_max).intersect(*shape_rows(storage.shape))
+    n = box.n_joints
+    worst = np.concatenate([box_high * np.array(storage.shape), box.lower[n:]])
+    margins = nuno_joint_margins(params, worst)
+    in_cone = box.lower[n:] >= np.array(storage.cone) * worst[:n]
+    certified = bool(low <= box_high and np.all(in_cone))
+    violation = None
+    if low > box_high:
+        violation = "no common-shape stiffness K_r = kappa K_l / K_l^1 lies in the box"
+    elif not certified:
+        i = int(np.argmin(in_cone))
+        violation = (f"joint {i + 1} at kappa = {box_high:g}, B_r = {box.lower[n + i]:g}: "
+                     f"below the cone B_r >= {storage.cone[i]:g} K_r")
+    guarantee = (f"guarantee: the storage V of teleopkit.certification.storage obeys V(t) <= "
+                 f"exp({variation.value:g}) V(0)" if variation.kind == "scheduled" else
+                 "guarantee: V(t) + tank(t) <= V(0) + T0 for the storage V of "
+                 "teleopkit.certification.storage (falls of kappa paid from the measured remote "
+                 "energy)")
+    details = {"storage": asdict(storage), "kappa_range": [low, high],
+               "refill": TANK_REFILL if variation.kind == "tank" else None}
+    return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
+                           float(margins.min()), box, polytope, low <= high,
+                           (*_COMMON, variation.describe(), guarantee), violation, details,
+                           plant_record(params))

@@ -1,0 +1,456 @@
+r"""The scheduled gain classes at run time: a coupled projection that keeps a budget or a tank.
+
+The set of a control step is
+
+.. math::
+
+    \{ a : K_r^i = \kappa s_i,\ \kappa \in [\max(\kappa_{min}, \kappa_{floor}), \kappa_{max}],\
+    B_{lo}^i \le B_r^i \le B_{hi}^i,\ B_r^i \ge \rho_i s_i \kappa + \beta_i \},
+
+the certificate's common-shape polytope with a floor on ``kappa`` from the run-time state:
+``kappa_- exp(-budget)`` for ``scheduled:L`` (a fall spends ``ln(kappa_- / kappa_+)``), and
+``1 / (1 / kappa_- + tank / E_r)`` for ``tank`` (a fall costs the storage it adds,
+``E_r (1 / kappa_+ - 1 / kappa_-)``, with ``E_r`` the remote energy measured at the sample).
+
+The projection is exact without an iterative solver. For a fixed ``kappa`` the best damping is
+``B_r^i = clip(raw, max(B_lo^i, rho_i s_i kappa + beta_i), B_hi^i)``, which leaves a convex
+piecewise-quadratic function of ``kappa`` alone. Its derivative is piecewise linear and
+increasing, with a kink where a cone becomes active (``rho_i s_i kappa + beta_i = max(raw_i,
+B_lo^i)``); the minimiser is found by walking the sorted kinks, and is then clipped into the
+step's interval of ``kappa``. No distances are compared, so near-ties cannot pick a wrong point.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.model.params import plant_params
+from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer
+from teleopkit.sim.state import StateLayout
+
+__all__ = ["BUDGET", "TANK", "ScheduleLayer", "project_scheduled"]
+
+BUDGET, TANK = 0, 1
+"""Run-time modes of the kernel: a log budget of falls, or an energy tank."""
+
+_OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "_nrt": False}
+
+
+@njit(forceinline=True, **_OPTIONS)
+def _minimiser(raw: np.ndarray, shape: np.ndarray, rho: np.ndarray, beta: np.ndarray,
+               b_lo: np.ndarray, kinks: np.ndarray, order: np.ndarray) -> float:
+    """The unconstrained minimiser over ``kappa`` of the cost with the best damping."""
+    n = shape.size
+    for i in range(n):
+        slope = rho[i] * shape[i]
+        kinks[i] = (max(raw[n + i], b_lo[i]) - beta[i]) / slope
+        order[i] = i
+    for i in range(1, n):  # insertion sort of the kinks (n is the number of joints)
+        j = i
+        while j > 0 and kinks[order[j - 1]] > kinks[order[j]]:
+            order[j - 1], order[j] = order[j], order[j - 1]
+            j -= 1
+    num, den = 0.0, 0.0
+    for i in range(n):
+        num += shape[i] * raw[i]
+        den += shape[i] * shape[i]
+    start = -math.inf
+    for j in range(n + 1):
+        end = kinks[order[j]] if j < n else math.inf
+        root = num / den
+        if root <= end:
+            return max(root, start)
+        i = order[j]
+        slope = rho[i] * shape[i]
+        num += slope * (raw[n + i] - beta[i])
+        den += slope * slope
+        start = end
+    return start  # not reached: the last piece ends at infinity
+
+
+@njit(**_OPTIONS)
+def project_scheduled(raw: np.ndarray, out: np.ndarray, flags: np.ndarray, distance: np.ndarray,
+                      floor: np.ndarray, active: np.ndarray, tol: float, shape: np.ndarray,
+                      rho: np.ndarray, beta: np.ndarray,
+                      b_lo: np.ndarray, b_hi: np.ndarray, kappa_lo: float, kappa_hi: float,
+                      prev: np.ndarray, level: np.ndarray, energy: np.ndarray, mode: int,
+                      refill: float, centre: np.ndarray, kinks: np.ndarray,
+                      order: np.ndarray) -> None:
+    """Project a batch of raw actions onto the step's set and update the run-time state.
+
+    Parameters
+    ----------
+    raw : ndarray, shape (B, 2 n)
+        Raw actions (NaN and inf allowed: the previous action is applied again, or ``centre``
+        at the first step).
+    out : ndarray, shape (B, 2 n)
+        Receives the applied actions.
+    flags : ndarray of int, shape (B,)
+        Receives 1 where the raw action was not finite, else 0.
+    distance : ndarray, shape (B,)
+        Receives ``||out - raw||`` (``inf`` for a non-finite raw action).
+    floor : ndarray, shape (B,)
+        Receives the floor of ``kappa`` in force at this step.
+    active : ndarray of bool, shape (B, 3 + 3 n)
+        Receives which constraints hold with equality (within ``tol`` relative): the floor, the
+        two ends of ``kappa``'s interval, the damping box's lower and upper ends, the cones.
+    tol : float
+        Relative tolerance of the report.
+    shape, rho, beta, b_lo, b_hi : ndarray, shape (n,)
+        The common shape, the cone ``B_r^i >= rho_i s_i kappa + beta_i`` and the damping box.
+    kappa_lo, kappa_hi : float
+        The static interval of ``kappa``.
+    prev : ndarray, shape (B, 2 n)
+        The action applied at the previous step (NaN at the first); updated to ``out``.
+    level : ndarray, shape (B,)
+        Budget left (mode :data:`BUDGET`) or tank level (mode :data:`TANK`); updated.
+    energy : ndarray, shape (B,)
+        The remote energy ``E_r`` measured at this sample (tank mode).
+    mode : int
+        :data:`BUDGET` or :data:`TANK`.
+    refill : float
+        Fraction of the storage released by a rise of ``kappa`` that refills the tank.
+    centre : ndarray, shape (2 n,)
+        An interior action, applied when nothing finite is available.
+    kinks : ndarray, shape (n,)
+        Scratch.
+    order : ndarray of int, shape (n,)
+        Scratch.
+    """
+    n = shape.size
+    for b in range(raw.shape[0]):
+        previous = prev[b, 0] / shape[0]
+        has_prev = math.isfinite(previous)
+        low = kappa_lo
+        if has_prev:
+            if mode == BUDGET:
+                low = max(low, previous * math.exp(-level[b]))
+            elif energy[b] > 0.0:
+                low = max(low, 1.0 / (1.0 / previous + level[b] / energy[b]))
+            low = min(low, previous)  # the previous kappa is always allowed again
+        floor[b] = low
+        finite = True
+        for c in range(2 * n):
+            if not math.isfinite(raw[b, c]):
+                finite = False
+        if finite:
+            kappa = min(max(_minimiser(raw[b], shape, rho, beta, b_lo, kinks, order), low),
+                        kappa_hi)
+            for i in range(n):
+                cone = rho[i] * shape[i] * kappa + beta[i]
+                out[b, i] = kappa * shape[i]
+                out[b, n + i] = min(max(raw[b, n + i], max(b_lo[i], cone)), b_hi[i])
+            total = 0.0
+            for c in range(2 * n):
+                total += (out[b, c] - raw[b, c]) ** 2
+            flags[b], distance[b] = 0, math.sqrt(total)
+        else:
+            kappa = previous if has_prev else centre[0] / shape[0]
+            for c in range(2 * n):
+                out[b, c] = prev[b, c] if has_prev else centre[c]
+            flags[b], distance[b] = 1, math.inf
+        if has_prev and kappa != previous:
+            if mode == BUDGET:
+                level[b] = max(0.0, level[b] - max(0.0, math.log(previous / kappa)))
+            else:
+                change = energy[b] * (1.0 / kappa - 1.0 / previous)
+                level[b] = max(0.0, level[b] - change) if change > 0 else level[b] - refill * change
+        near = tol * (1.0 + abs(kappa))
+        active[b, 0] = abs(kappa - low) <= near
+        active[b, 1] = abs(kappa - kappa_lo) <= near
+        active[b, 2] = abs(kappa - kappa_hi) <= near
+        for i in range(n):
+            near = tol * (1.0 + abs(out[b, n + i]))
+            active[b, 3 + i] = abs(out[b, n + i] - b_lo[i]) <= near
+            active[b, 3 + n + i] = abs(out[b, n + i] - b_hi[i]) <= near
+            active[b, 3 + 2 * n + i] = abs(out[b, n + i] - rho[i] * shape[i] * kappa
+                                           - beta[i]) <= near
+        for c in range(2 * n):
+            prev[b, c] = out[b, c]
+
+
+class ScheduleLayer(SafetyLayer):
+    """The safety layer of a scheduled class: the step's coupled set and its run-time state.
+
+    Every call of :meth:`project_batch` is one control step of an episode: it projects onto the
+    set of that step (the common shape, the box, the cone and the floor on ``kappa``) and spends
+    the budget or the tank. :meth:`reset` starts an episode; with a tank, :meth:`observe` takes
+    the plant's states at every sample (remote energy and dissipation). Build it with
+    :meth:`SafetyLayer.from_certificate`.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        A certified ``scheduled:L`` or ``tank`` certificate.
+    tol : float
+        Tolerance of the active-constraint report.
+    """
+
+    stateful = True
+
+    def __init__(self, certificate: GainCertificate, tol: float = 1e-9) -> None:
+        variation = certificate.variation
+        if not variation.scheduled:
+            raise ValueError(f"a schedule layer needs a scheduled:L or tank certificate, not "
+                             f"{variation}")
+        self.certificate = certificate
+        self.polytope = certificate.polytope
+        self.tol = float(tol)
+        self.max_step = None
+        self._qp: dict[bool, tuple[Any, Any, Any, Any]] = {}
+        self.storage = ScheduledStorage(**{key: tuple(value) if isinstance(value, list)
+                                           else value for key, value in
+                                           certificate.details["storage"].items()})
+        self._params = plant_params(certificate.plant)
+        self._set = _step_set(certificate, self.storage)
+        self._mode = BUDGET if variation.kind == "scheduled" else TANK
+        self._initial = variation.value
+        self._refill = float(certificate.details.get("refill") or 0.0)
+        self._centre = _centre(self._set)
+        n = len(self.storage.shape)
+        self._scratch = (np.empty(n), np.empty(n, dtype=np.int64))
+        self._labels = ("kappa >= floor (budget or tank)", "kappa >= min", "kappa <= max",
+                        *(f"B_r{i + 1} >= min" for i in range(n)),
+                        *(f"B_r{i + 1} <= max" for i in range(n)),
+                        *(f"cone joint {i + 1}: B_r{i + 1} >= rho K_r{i + 1}"
+                          for i in range(n)))
+        self.reset()
+
+    @property
+    def step_set(self) -> tuple[Any, ...]:
+        """The static set: ``(shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi)``.
+
+        The cone is ``B_r^i >= rho_i shape_i kappa + beta_i``; the step's set adds the floor on
+        ``kappa`` from the run-time state.
+        """
+        return self._set
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The constraints of :attr:`Projection.active`: floor, interval, damping box, cones."""
+        return self._labels
+
+    def reset(self) -> None:
+        """Start an episode: full budget or initial tank, no previous action."""
+        self._prev: np.ndarray | None = None
+        self._last: np.ndarray | None = None
+        self._level = np.zeros(0)
+        self._energy = np.zeros(0)
+        self._dissipated = np.zeros((0, len(self.storage.shape)))
+        self.last_floor = np.zeros(0)
+
+    def _start(self, batch: int) -> None:
+        n = len(self.storage.shape)
+        self._prev = np.full((batch, 2 * n), np.nan)
+        self._level = np.full(batch, self._initial)
+        if self._energy.shape != (batch,):
+            self._energy = np.zeros(batch)
+            self._dissipated = np.zeros((batch, n))
+
+    def observe(self, state: np.ndarray) -> None:
+        """Measure the remote energy and refill the tank with the proven dissipation.
+
+        Parameters
+        ----------
+        state : ndarray, shape (B, 12 n)
+            The plant's states at the sample (the energy integrals of
+            :class:`~teleopkit.sim.state.StateLayout` give the dissipation since the last one).
+        """
+        if self._mode != TANK:
+            return
+        state = np.asarray(state, dtype=float)
+        integral = StateLayout.of(state).get(state, "int_dtheta2")
+        if self._prev is not None and self._prev.shape[0] == state.shape[0]:
+            applied = np.all(np.isfinite(self._prev), axis=1)
+            rates = self.storage.dissipation_rates(np.nan_to_num(self._prev, nan=1.0))
+            gained = np.sum(rates * (integral - self._dissipated), axis=1)
+            self._level = self._level + np.where(applied, self._refill * gained, 0.0)
+        self._energy = self.storage.remote_energy(self._params, state)
+        self._dissipated = integral
+
+    def run_time_state(self, batch: int) -> np.ndarray:
+        """The budget left or the tank level of each scenario, shape ``(B, 1)``.
+
+        Parameters
+        ----------
+        batch : int
+            Number of scenarios.
+
+        Returns
+        -------
+        ndarray, shape (B, 1)
+            The level (the initial one before the first step).
+        """
+        level = self._level if self._level.shape == (batch,) else np.full(batch, self._initial)
+        return level[:, None].copy()
+
+    def contains(self, actions: np.ndarray) -> np.ndarray:
+        """Whether actions lie in the class: the static set, with the budget or tank not overdrawn.
+
+        Parameters
+        ----------
+        actions : ndarray, shape (..., 2 n)
+            Gain vectors (for a batch of the current episode, its run-time state is checked
+            too).
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+            Membership of each action.
+        """
+        inside = self.polytope.contains(actions)
+        if inside.shape == self._level.shape:
+            inside = inside & (self._level >= -self.tol * (1.0 + abs(self._initial)))
+        return inside
+
+    @property
+    def fallback_action(self) -> np.ndarray:
+        """The interior action applied at a first step whose raw action is not finite."""
+        return self._centre.copy()
+
+    def project(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
+        """One control step of a single scenario (see :meth:`project_batch`).
+
+        Parameters
+        ----------
+        raw : ndarray, shape (2 n,)
+            Raw action; NaN and inf are allowed.
+        prev : ndarray, shape (2 n,), optional
+            The action applied at the previous step, if given (it must be the layer's own).
+
+        Returns
+        -------
+        Projection
+            The applied action and what the layer did.
+        """
+        result = self.project_batch(np.reshape(raw, (1, -1)),
+                                    None if prev is None else np.reshape(prev, (1, -1)))
+        return Projection(result.action[0], float(result.distance[0]), result.active[0],
+                          result.rate_active[0], FLAGS[result.fallback[0]],
+                          float(result.schedule[0]))
+
+    def project_batch(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
+        """One control step of a batch: project onto the step's set, spend the budget or tank.
+
+        Parameters
+        ----------
+        raw : ndarray, shape (B, 2 n)
+            Raw actions; NaN and inf are allowed (the previous action is applied again).
+        prev : ndarray, shape (B, 2 n), optional
+            The actions applied at the previous step, if given: they must be the layer's own
+            (it keeps them; a different history would void the budget).
+
+        Returns
+        -------
+        Projection
+            Applied actions, distances, active constraints (:attr:`labels`), flags and the
+            budget or tank left.
+
+        Raises
+        ------
+        ValueError
+            On a batch size other than the episode's or a ``prev`` that is not the layer's.
+        """
+        raw = np.atleast_2d(raw)
+        shape = (raw.shape[0], self.dimension)
+        raw = self._actions(raw, shape, "raw actions")
+        if self._prev is None:
+            if prev is not None:
+                raise ValueError("the schedule layer starts an episode without a previous "
+                                 "action; call reset() and pass none")
+            self._start(shape[0])
+        assert self._prev is not None
+        if self._prev.shape != shape:
+            raise ValueError(f"the episode has {self._prev.shape[0]} scenarios, got "
+                             f"{shape[0]}; call reset() to start another")
+        if prev is not None and not (_same(prev, self._last)
+                                     or np.array_equal(prev, self._prev, equal_nan=True)):
+            raise ValueError("prev is not the action this layer applied last; it keeps its own "
+                             "history (call reset() to start an episode)")
+        out = np.empty(shape)
+        flags = np.empty(shape[0], dtype=np.int64)
+        distance = np.empty(shape[0])
+        self.last_floor = np.empty(shape[0])
+        active = np.empty((shape[0], len(self.labels)), dtype=np.bool_)
+        project_scheduled(raw, out, flags, distance, self.last_floor, active, self.tol,
+                          *self._set, self._prev, self._level, self._energy, self._mode,
+                          self._refill, self._centre, *self._scratch)
+        self._last = out
+        return Projection(out, distance, active, np.zeros(shape, dtype=bool), flags,
+                          self._level.copy())
+
+    def project_qp(self, raw: np.ndarray, prev: np.ndarray | None = None,
+                   floor: float = 0.0) -> np.ndarray:
+        """Solve the step's projection QP with cvxpy and Clarabel (reference for the kernel).
+
+        Parameters
+        ----------
+        raw : ndarray, shape (2 n,)
+            Raw action (finite).
+        prev : ndarray, shape (2 n,), optional
+            Unused (the floor carries the history).
+        floor : float
+            The step's floor on ``kappa`` (for example :attr:`last_floor` of a step).
+
+        Returns
+        -------
+        ndarray, shape (2 n,)
+            The projection onto the certificate's polytope with ``kappa >= floor``.
+        """
+        import cvxpy as cp
+
+        raw = self._actions(raw, (self.dimension,), "raw action")
+        a = cp.Variable(self.dimension)
+        constraints = [self.polytope.G @ a <= self.polytope.h,
+                       a[0] >= self.storage.shape[0] * floor]
+        problem = cp.Problem(cp.Minimize(cp.sum_squares(a - raw)), constraints)
+        problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+        if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+            raise ValueError(f"reference projection failed: {problem.status}")
+        return np.asarray(a.value, dtype=float)
+
+
+def _same(prev: np.ndarray, last: np.ndarray | None) -> bool:
+    """Whether ``prev`` is (a view of) the array the layer returned last."""
+    return last is not None and (prev is last or prev.base is last)
+
+
+def _step_set(certificate: GainCertificate, storage: ScheduledStorage) -> tuple[Any, ...]:
+    """The kernel's static arguments: shape, cone slope and offset, damping box, kappa range.
+
+    The cone is read from the polytope's closed-form rows (``G_K K + G_B B <= h`` is
+    ``B >= rho K + h / G_B``), so the layer enforces exactly the set the certificate states.
+    """
+    box, polytope = certificate.box, certificate.polytope
+    n = box.n_joints
+    shape, rho = np.array(storage.shape), np.array(storage.cone)
+    beta = np.zeros(n)
+    for i in range(n):
+        rows = [r for r, label in enumerate(polytope.labels) if label.startswith(f"Nuño joint "
+                                                                                 f"{i + 1}:")]
+        if len(rows) != 1:
+            raise ValueError(f"the certificate's polytope has no closed-form row for joint {i + 1}")
+        g, h = polytope.G[rows[0]], polytope.h[rows[0]]
+        if not math.isclose(-g[i] / g[n + i], rho[i], rel_tol=1e-9):
+            raise ValueError(f"the certificate's cone of joint {i + 1} does not match its storage")
+        beta[i] = h / g[n + i]
+    b_lo, b_hi = box.lower[n:], box.upper[n:]
+    kappa_lo = float(np.max(box.lower[:n] / shape))
+    kappa_hi = float(np.min(np.minimum(box.upper[:n] / shape, (b_hi - beta) / (rho * shape))))
+    if kappa_lo > kappa_hi:
+        raise ValueError("the certificate's common-shape set is empty")
+    return shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi
+
+
+def _centre(step: tuple[Any, ...]) -> np.ndarray:
+    """An interior action: mid ``kappa`` and mid damping of the cone at that ``kappa``."""
+    shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi = step
+    kappa = 0.5 * (kappa_lo + kappa_hi)
+    low = np.maximum(b_lo, rho * shape * kappa + beta)
+    return np.concatenate([kappa * shape, 0.5 * (low + b_hi)])
