@@ -98,6 +98,18 @@ class GainCertificate:
                                  f"certificate's bound {certified:g} s (delays in seconds: a "
                                  "value in milliseconds needs the ms unit)")
 
+    def verify(self) -> None:
+        """Re-check the certificate (:func:`.verification.verify_certificate`).
+
+        Raises
+        ------
+        ValueError
+            One line naming what does not check out.
+        """
+        from teleopkit.certification.verification import verify_certificate
+
+        verify_certificate(self)
+
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (what ``teleopkit certify --json`` prints)."""
         n = self.box.n_joints

@@ -41,7 +41,7 @@ from teleopkit.safety.polygons import (
     project_one,
 )
 
-__all__ = ["Fallback", "Projection", "SafetyLayer"]
+__all__ = ["FLAGS", "Fallback", "Projection", "SafetyLayer", "kkt_polish"]
 
 
 class Fallback(enum.IntFlag):
@@ -428,19 +428,37 @@ class SafetyLayer:
             g = np.vstack([g, eye, -eye])
             h = np.concatenate([h, centre + self.max_step, self.max_step - centre])
         approx = np.asarray(a.value, dtype=float)
-        exact = _kkt_polish(g, h, raw, approx)
+        exact = kkt_polish(g, h, raw, approx)
         if exact is None and problem.status != cp.OPTIMAL:
             raise ValueError(f"reference projection failed: {problem.status}")
         return approx if exact is None else exact
 
 
-def _kkt_polish(g: np.ndarray, h: np.ndarray, raw: np.ndarray, approx: np.ndarray,
-                tol: float = 1e-4) -> np.ndarray | None:
+def kkt_polish(g: np.ndarray, h: np.ndarray, raw: np.ndarray, approx: np.ndarray,
+               tol: float = 1e-4) -> np.ndarray | None:
     """Exact projection of ``raw`` onto ``{g a <= h}`` from an approximate one.
 
     Rows within distance ``tol`` of ``approx`` start as equalities; the row with the most
     negative multiplier is dropped until all are non-negative. The least-squares solution is
     returned if it is also feasible (then it satisfies the KKT conditions), else None.
+
+    Parameters
+    ----------
+    g : ndarray, shape (m, d)
+        Constraint normals.
+    h : ndarray, shape (m,)
+        Constraint offsets.
+    raw : ndarray, shape (d,)
+        The point projected.
+    approx : ndarray, shape (d,)
+        An approximate projection (an interior-point solution).
+    tol : float
+        Distance below which a row starts as an equality.
+
+    Returns
+    -------
+    ndarray or None
+        The exact projection, or None if the polish does not find a KKT point.
     """
     norms = np.linalg.norm(g, axis=1)
     active = np.flatnonzero(g @ approx - h >= -tol * norms)

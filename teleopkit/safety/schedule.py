@@ -31,7 +31,7 @@ from numba import njit
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.storage import ScheduledStorage
 from teleopkit.model.params import plant_params
-from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer
+from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer, kkt_polish
 from teleopkit.sim.state import StateLayout
 
 __all__ = ["BUDGET", "TANK", "ScheduleLayer", "project_scheduled"]
@@ -406,14 +406,18 @@ class ScheduleLayer(SafetyLayer):
         import cvxpy as cp
 
         raw = self._actions(raw, (self.dimension,), "raw action")
+        floor_row = np.zeros(self.dimension)
+        floor_row[0] = -1.0
+        g = np.vstack([self.polytope.G, floor_row])
+        h = np.append(self.polytope.h, -self.storage.shape[0] * floor)
         a = cp.Variable(self.dimension)
-        constraints = [self.polytope.G @ a <= self.polytope.h,
-                       a[0] >= self.storage.shape[0] * floor]
-        problem = cp.Problem(cp.Minimize(cp.sum_squares(a - raw)), constraints)
+        problem = cp.Problem(cp.Minimize(cp.sum_squares(a - raw)), [g @ a <= h])
         problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
         if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
             raise ValueError(f"reference projection failed: {problem.status}")
-        return np.asarray(a.value, dtype=float)
+        approx = np.asarray(a.value, dtype=float)
+        exact = kkt_polish(g, h, raw, approx)
+        return approx if exact is None else exact
 
 
 def _same(prev: np.ndarray, last: np.ndarray | None) -> bool:

@@ -1,0 +1,70 @@
+"""Re-checking a certificate read from a file: nothing unverified reaches the plant.
+
+A closed-form certificate (frozen, ``scheduled:L`` or ``tank``) is re-derived from the plant,
+box, delay bounds and class it records, and must agree with what it states; an LMI certificate's
+stored solutions must satisfy their LMIs again and certify the polytope it offers.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+
+from teleopkit.certification.certificate import GainCertificate
+from teleopkit.model.params import plant_params
+
+__all__ = ["verify_certificate"]
+
+
+def _plain(data: Any) -> Any:
+    """``data`` as JSON reads it back (tuples become lists)."""
+    return json.loads(json.dumps(data))
+
+
+def _derived(certificate: GainCertificate) -> GainCertificate:
+    from teleopkit.certification.analysis import certify_gains
+
+    return certify_gains(plant_params(certificate.plant), certificate.box,
+                         *certificate.delay_bounds, method="nuno",
+                         variation=certificate.gain_variation)
+
+
+def verify_certificate(certificate: GainCertificate) -> None:
+    """Raise unless the certificate is what its method derives from what it records.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        A certificate, typically read with :meth:`GainCertificate.from_json`.
+
+    Raises
+    ------
+    ValueError
+        One line naming what does not check out.
+    """
+    if not certificate.plant:
+        raise ValueError("the certificate names no plant; certify again with this teleopkit")
+    if certificate.method != "nuno":
+        from teleopkit.certification.lmi_verdict import verify_lmi
+
+        verify_lmi(certificate)
+        return
+    derived = _derived(certificate)
+    for name in ("certified", "polytope_certified"):
+        if getattr(derived, name) != getattr(certificate, name):
+            raise ValueError(f"the certificate states {name} = {getattr(certificate, name)}, "
+                             f"its plant and box give {getattr(derived, name)}")
+    mine, theirs = certificate.polytope, derived.polytope
+    if mine.G.shape != theirs.G.shape or not (np.allclose(mine.G, theirs.G, rtol=1e-12, atol=0)
+                                              and np.allclose(mine.h, theirs.h, rtol=1e-12,
+                                                              atol=1e-15)):
+        raise ValueError("the certificate's gain polytope is not the one its plant, box and "
+                         "delay bounds give (edited?)")
+    if not np.isclose(derived.delay_margin, certificate.delay_margin, rtol=1e-12):
+        raise ValueError(f"the certificate states a delay margin of {certificate.delay_margin:g} "
+                         f"s, its plant and box give {derived.delay_margin:g} s")
+    if _plain(derived.details) != _plain(certificate.details):
+        raise ValueError("the certificate's details (storage, cone) are not those its plant and "
+                         "box give")

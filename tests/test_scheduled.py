@@ -1,0 +1,234 @@
+"""The scheduled gain classes: the storage along nonlinear runs, the layer, the certificate."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from teleopkit.certification import GainBox, GainCertificate, certify_gains
+from teleopkit.certification.storage import ScheduledStorage, double_integral
+from teleopkit.delays import ConstantDelay, SwitchingDelay
+from teleopkit.model.params import Operator, PDGains, paper_setup
+from teleopkit.rl.torch_projection import torch_projection
+from teleopkit.safety import CertifiedLoop, SafetyLayer
+from teleopkit.sim import Scenario, Simulator, StateLayout
+from teleopkit.sim.trajectory import Trajectory
+
+BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
+PASSIVE = dataclasses.replace(paper_setup(), operator=Operator(amplitudes=(0.0, 0.0)),
+                              torque_limit=math.inf)
+"""The paper's plant with the operator holding the origin (passive) and no torque saturation."""
+SHAPED = dataclasses.replace(PASSIVE, local_gains=PDGains((25.0, 15.0), (10.0, 8.0)))
+"""Different local gains per joint: the common shape is then (1, 0.6)."""
+
+
+def adversarial(params, batch: int = 6, seed: int = 0) -> Simulator:
+    """Delays jumping between 0 and 1 s every 50-70 ms, both channels independently."""
+    return Simulator(Scenario(params, SwitchingDelay(0.0, 1.0, 0.06, "extremes", seed, batch),
+                              SwitchingDelay(0.0, 1.0, 0.05, "extremes", seed + 1, batch),
+                              np.ones((batch, params.n_joints))))
+
+
+def schedule(storage: ScheduledStorage, kappa: np.ndarray, rng, on_boundary: float = 0.2):
+    """Gains of the class for ``kappa`` (P, B): common shape, damping random in the cone."""
+    shape, cone = np.array(storage.shape), np.array(storage.cone)
+    stiffness = kappa[..., None] * shape
+    damping = cone * stiffness * rng.uniform(1.0, 3.0, stiffness.shape)
+    damping = np.where(rng.random(damping.shape) < on_boundary, cone * stiffness, damping)
+    return np.concatenate([stiffness, damping], axis=-1)
+
+
+@pytest.mark.parametrize("params", [PASSIVE, SHAPED], ids=["paper", "shaped"])
+def test_storage_never_rises_when_kappa_does_not_fall(params, rng):
+    storage = ScheduledStorage.for_plant(params, 1.0, 1.0)
+    sim = adversarial(params)
+    kappa = np.maximum.accumulate(1.0 + 40 * rng.random((1500, 6)) * (rng.random((1500, 6))
+                                                                      < 0.02), axis=0)
+    value = storage.value(params, sim.run(15.0, schedule(storage, kappa, rng)))
+    rise = np.diff(value, axis=0) / value[:-1]
+    assert rise.max() < 1e-7  # falls at every sample, to integration accuracy
+    assert value[-1].max() < 0.5 * value[0].min()
+
+
+def test_storage_rises_under_arbitrary_stiffness_switching(rng):
+    storage = ScheduledStorage.for_plant(PASSIVE, 1.0, 1.0)
+    kappa = rng.uniform(1.0, 50.0, (1000, 6))
+    value = storage.value(PASSIVE, adversarial(PASSIVE).run(10.0, schedule(storage, kappa, rng)))
+    assert (value / value[0]).max() > 2.0  # outside the class the storage is no certificate
+
+
+def test_a_fall_of_kappa_raises_the_storage_by_at_most_its_ratio(rng):
+    storage = ScheduledStorage.for_plant(PASSIVE, 1.0, 1.0)
+    gains = schedule(storage, rng.uniform(1.0, 50.0, (800, 6)), rng)
+    trajectory = adversarial(PASSIVE).run(8.0, gains)
+    value = storage.value(PASSIVE, trajectory)
+    kappa = storage.kappa(np.concatenate([trajectory.gains[1:], trajectory.gains[-1:]]))
+    ratio = np.maximum(1.0, kappa[:-1] / kappa[1:])
+    assert (value[1:] / (value[:-1] * ratio)).max() <= 1.0 + 1e-7
+
+
+def test_energy_integrals_are_the_integrals_of_the_squared_velocities():
+    scenario = Scenario(paper_setup(), ConstantDelay(0.3), ConstantDelay(0.3), np.ones((2, 2)))
+    sim = Simulator(scenario)
+    fine = Simulator(scenario, control_period=sim.dt)  # record every integration step
+    trajectory = fine.run(3.0, np.array([10.0, 10.0, 30.0, 30.0]))
+    layout = StateLayout(2)
+    for speed, single, double in (("dql", "int_dql2", "iint_dql2"),
+                                  ("dtheta", "int_dtheta2", "iint_dtheta2")):
+        v2 = layout.get(trajectory.state, speed) ** 2
+        integral = layout.get(trajectory.state, single)
+        rate = np.gradient(integral, trajectory.t, axis=0)[20:-1]  # after the first 25 ms
+        np.testing.assert_allclose(rate, v2[20:-1], rtol=0, atol=2e-3 * v2.max())
+        np.testing.assert_allclose(np.gradient(layout.get(trajectory.state, double),
+                                               trajectory.t, axis=0)[20:-1], integral[20:-1],
+                                   rtol=0, atol=1e-5 * integral.max())
+
+
+def test_double_integral_matches_its_definition():
+    t = np.linspace(0.0, 4.0, 401)
+    v2 = np.sin(3 * t) ** 2 + 0.1
+    single = np.concatenate([[0.0], np.cumsum(0.5 * (v2[1:] + v2[:-1]) * np.diff(t))])
+    double = np.concatenate([[0.0], np.cumsum(0.5 * (single[1:] + single[:-1]) * np.diff(t))])
+    got = double_integral(t, single, double, 1.234)
+    for k in (50, 200, 400):  # int_{t-T}^t (s - t + T) v^2(s) ds
+        s = np.linspace(max(0.0, t[k] - 1.234), t[k], 20001)
+        w = np.interp(s, t, v2) * (s - t[k] + 1.234)
+        assert got[k] == pytest.approx(np.trapezoid(w, s), rel=2e-3)
+
+
+def certified(variation: str, params=PASSIVE) -> GainCertificate:
+    return certify_gains(params, BOX, 1.0, 1.0, "nuno", variation)
+
+
+def run_loop(layer: SafetyLayer, sim: Simulator, steps: int, rng, high: float = 200.0):
+    """Random raw actions through the certified loop: the trajectory and the levels.
+
+    ``levels[k]`` is the budget or tank just after the sample ``t_{k-1}`` (its jump paid);
+    ``levels[0]`` the initial one.
+    """
+    loop = CertifiedLoop(layer)
+    loop.start(sim)
+    parts, applied, levels = [sim.initial_record()], [], [layer.run_time_state(sim.batch)[:, 0]]
+    for _ in range(steps):
+        result, projection = loop.step(rng.uniform(-10.0, high, (sim.batch, 4)))
+        parts.append(result)
+        applied.append(projection.action)
+        levels.append(projection.schedule)
+    assert loop.unsafe_actions == 0
+    return Trajectory.join(parts, np.stack(applied)), np.stack(levels)
+
+
+@pytest.mark.parametrize("budget", [0.0, 0.5, 2.0])
+def test_the_budget_bounds_the_storage_along_any_raw_actions(budget, rng):
+    layer = SafetyLayer.from_certificate(certified(f"scheduled:{budget:g}"))
+    trajectory, levels = run_loop(layer, adversarial(PASSIVE, seed=3), 800, rng)
+    assert levels.min() >= -1e-12 and levels.max() <= budget
+    kappa = layer.storage.kappa(trajectory.gains)
+    falls = np.log(np.maximum(1.0, kappa[1:-1] / kappa[2:])).sum(axis=0)
+    np.testing.assert_allclose(falls, budget - levels[-1], atol=1e-9)
+    value = layer.storage.value(PASSIVE, trajectory)
+    assert (value / value[0]).max() <= math.exp(budget) * (1 + 1e-7)
+
+
+def test_the_tank_keeps_storage_plus_tank_from_rising(rng):
+    layer = SafetyLayer.from_certificate(certified("tank:0.05"))
+    trajectory, levels = run_loop(layer, adversarial(PASSIVE, seed=5), 1000, rng)
+    value = layer.storage.value(PASSIVE, trajectory)
+    total = value[:-1] + levels[1:]  # just after each sample: the level after its jump is paid
+    assert (np.diff(total, axis=0) / total[:-1]).max() < 1e-7
+    assert levels.min() >= -1e-12
+    kappa = layer.storage.kappa(trajectory.gains)
+    assert np.any(kappa[2:] < kappa[1:-1] - 1e-6)  # the tank did pay for falls
+
+
+def test_the_shaped_plant_keeps_its_common_shape(rng):
+    layer = SafetyLayer.from_certificate(certified("scheduled:1", SHAPED))
+    trajectory, _ = run_loop(layer, adversarial(SHAPED, seed=7), 300, rng)
+    gains = trajectory.gains
+    np.testing.assert_allclose(gains[..., 1], 0.6 * gains[..., 0], rtol=1e-12)
+    value = layer.storage.value(SHAPED, trajectory)
+    assert (value / value[0]).max() <= math.e * (1 + 1e-7)
+
+
+raw_actions = arrays(np.float64, 4, elements=st.floats(-300.0, 400.0))
+
+
+@settings(deadline=None, max_examples=150)
+@given(st.lists(raw_actions, min_size=1, max_size=6))
+def test_projection_matches_the_qp_at_every_step(sequence):
+    layer = SafetyLayer.from_certificate(certified("scheduled:0.7"))
+    for raw in sequence:
+        result = layer.project(raw)
+        expected = layer.project_qp(raw, floor=float(layer.last_floor[0]))
+        np.testing.assert_allclose(result.action, expected, rtol=0, atol=1e-6)
+        assert layer.contains(result.action[None]).all()
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 1e300, -1e300])
+def test_projection_is_total(bad):
+    layer = SafetyLayer.from_certificate(certified("scheduled:0.3"))
+    first = layer.project(np.array([bad, 10.0, 30.0, 30.0]))
+    assert layer.contains(first.action[None]).all()
+    second = layer.project(np.array([20.0, 20.0, bad, 60.0]), first.action)
+    assert layer.contains(second.action[None]).all()
+    if not math.isfinite(bad) or abs(bad) > 1e299:
+        assert second.action[0] >= first.action[0] * math.exp(-0.3) - 1e-12
+
+
+def test_a_foreign_history_is_refused():
+    layer = SafetyLayer.from_certificate(certified("scheduled:1"))
+    layer.project(np.array([10.0, 10.0, 30.0, 30.0]))
+    with pytest.raises(ValueError, match="keeps its own history"):
+        layer.project(np.array([5.0, 5.0, 30.0, 30.0]), np.array([40.0, 40.0, 140.0, 140.0]))
+    with pytest.raises(ValueError, match="episode has 1 scenarios"):
+        layer.project_batch(np.ones((3, 4)))
+
+
+@settings(deadline=None, max_examples=60)
+@given(arrays(np.float64, (8, 4), elements=st.floats(-100.0, 300.0)))
+def test_torch_projection_is_the_layers_static_projection(raw):
+    layer = SafetyLayer.from_certificate(certified("scheduled:1"))
+    got = torch_projection(layer)(torch.as_tensor(raw)).numpy()
+    for row, expected in zip(raw, got, strict=True):
+        layer.reset()  # the first step of an episode has no floor: the static set
+        np.testing.assert_allclose(layer.project(row).action, expected, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("variation", ["scheduled:1", "tank", "tank:0.25"])
+def test_certificate_round_trip_and_verify(variation):
+    certificate = certified(variation)
+    loaded = GainCertificate.from_json(certificate.to_json())
+    loaded.verify()
+    assert loaded.gain_variation == variation and loaded.certified is False
+    assert loaded.polytope_certified and loaded.details["storage"]["cone"] == [2.5, 2.5]
+    layer = SafetyLayer.from_certificate(loaded)
+    assert layer.stateful and layer.run_time_state(2).shape == (2, 1)
+
+
+def test_a_tampered_scheduled_certificate_is_refused():
+    data = certified("scheduled:1").to_dict()
+    data["details"]["storage"]["cone"] = [0.5, 0.5]
+    import json
+
+    with pytest.raises(ValueError, match="details"):
+        GainCertificate.from_json(json.dumps(data)).verify()
+
+
+def test_the_certificate_says_what_it_covers():
+    certificate = certify_gains(paper_setup(), GainBox.uniform((1.0, 20.0), (60.0, 150.0)),
+                                1.0, 1.0, "nuno", "scheduled:1.5")
+    assert certificate.certified
+    text = " ".join(certificate.assumptions)
+    assert "exp(1.5) V(0)" in text and "no torque saturation" in text
+    assert "held between control samples" in text
+    frozen = certify_gains(paper_setup(), BOX, 1.0, 1.0)
+    assert any("without a published proof" in a for a in frozen.assumptions)
+    one = certify_gains(paper_setup(), GainBox.uniform((10.0, 10.0), (30.0, 60.0)), 1.0, 1.0)
+    assert not any("without a published proof" in a for a in one.assumptions)
