@@ -98,7 +98,8 @@ def simulate(kr: str, br: str, duration: float, delay: str, seed: int, dt: float
               help="nuno: closed form (instant); lmi: LK/LMI on the linearisation (seconds per "
                    "joint box, minutes for two joints); all: both, the best answer first.")
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
-              help="frozen | switching | rate:R (R in gain units per second).")
+              help="frozen | switching | rate:R | scheduled:L | tank[:T0] (R in gain units per "
+                   "second, L a log budget per episode, T0 an initial tank level).")
 @click.option("--json", "as_json", is_flag=True, help="Print the certificate as JSON.")
 def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, tr_max: float,
             method: str, variation: str, as_json: bool) -> int:
@@ -355,13 +356,15 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
 @click.option("--method", type=click.Choice(["nuno", "lmi"]), default="nuno", show_default=True,
               help="Certificate whose set is searched (lmi: minutes for two joints).")
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
-              help="Gain class of the certificate: frozen | switching | rate:R.")
+              help="Gain class of the certificate: frozen | switching | rate:R | scheduled:L | "
+                   "tank[:T0].")
 @click.option("--switch-gains/--certified-gains", "switch_gains", default=None,
               help="Let the adversary switch gains even if the certificate covers frozen gains "
                    "only (a probe outside the certificate) [default: as the certificate].")
 @click.option("--delays", type=click.Choice(["square", "segments"]), default="square",
               show_default=True, help="Adversarial delay pattern.")
-@click.option("--objective", type=click.Choice(["energy_growth", "error_growth", "energy"]),
+@click.option("--objective",
+              type=click.Choice(["energy_growth", "error_growth", "energy", "storage"]),
               default="energy_growth", show_default=True, help="What the adversary maximises.")
 @click.option("--search", "search_method", type=click.Choice(["cma", "random"]), default="cma",
               show_default=True, help="CMA-ES or random search.")
@@ -383,7 +386,8 @@ def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, 
     from teleopkit.certification import certify_gains
     from teleopkit.certification.gain_sets import GainBox, parse_range
     from teleopkit.model.params import paper_setup
-    from teleopkit.robustness.search import SearchSpace, search
+    from teleopkit.robustness.adversary import SearchSpace
+    from teleopkit.robustness.search import search
 
     params = paper_setup()
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))

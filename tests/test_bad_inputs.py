@@ -19,8 +19,9 @@ from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
 from teleopkit.delays import PiecewiseDelay, TraceDelay, parse_delay
 from teleopkit.model.params import paper_setup
+from teleopkit.robustness.adversary import SearchSpace
 from teleopkit.robustness.campaign import run_campaign
-from teleopkit.robustness.search import SearchSpace, search
+from teleopkit.robustness.search import search
 from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.sim.scenarios import Scenario, paper_scenarios
 from teleopkit.sim.simulator import Simulator

@@ -8,7 +8,8 @@ import pytest
 from teleopkit.certification import GainCertificate, certify_gains
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import paper_setup
-from teleopkit.robustness.search import SearchSpace, decode, gain_schedule, search
+from teleopkit.robustness.adversary import SearchSpace, decode, gain_schedule
+from teleopkit.robustness.search import search
 from teleopkit.safety import SafetyLayer
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 import torch
-from scipy.integrate import cumulative_simpson
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from scipy.integrate import cumulative_simpson
 
 from teleopkit.certification import GainBox, GainCertificate, certify_gains
 from teleopkit.certification.storage import ScheduledStorage, double_integral
@@ -20,7 +20,6 @@ from teleopkit.model.params import Operator, PDGains, paper_setup
 from teleopkit.rl.torch_projection import torch_projection
 from teleopkit.safety import CertifiedLoop, SafetyLayer
 from teleopkit.sim import Scenario, Simulator, StateLayout
-from teleopkit.sim.trajectory import Trajectory
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
 PASSIVE = dataclasses.replace(paper_setup(), operator=Operator(amplitudes=(0.0, 0.0)),
@@ -110,21 +109,11 @@ def certified(variation: str, params=PASSIVE) -> GainCertificate:
 
 
 def run_loop(layer: SafetyLayer, sim: Simulator, steps: int, rng, high: float = 200.0):
-    """Random raw actions through the certified loop: the trajectory and the levels.
-
-    ``levels[k]`` is the budget or tank just after the sample ``t_{k-1}`` (its jump paid);
-    ``levels[0]`` the initial one.
-    """
+    """Random raw actions through the certified loop: the trajectory and the levels."""
     loop = CertifiedLoop(layer)
-    loop.start(sim)
-    parts, applied, levels = [sim.initial_record()], [], [layer.run_time_state(sim.batch)[:, 0]]
-    for _ in range(steps):
-        result, projection = loop.step(rng.uniform(-10.0, high, (sim.batch, 4)))
-        parts.append(result)
-        applied.append(projection.action)
-        levels.append(projection.schedule)
+    trajectory, levels = loop.run(sim, rng.uniform(-10.0, high, (steps, sim.batch, 4)))
     assert loop.unsafe_actions == 0
-    return Trajectory.join(parts, np.stack(applied)), np.stack(levels)
+    return trajectory, levels
 
 
 @pytest.mark.parametrize("budget", [0.0, 0.5, 2.0])
@@ -135,6 +124,7 @@ def test_the_budget_bounds_the_storage_along_any_raw_actions(budget, rng):
     kappa = layer.storage.kappa(trajectory.gains)
     falls = np.log(np.maximum(1.0, kappa[1:-1] / kappa[2:])).sum(axis=0)
     np.testing.assert_allclose(falls, budget - levels[-1], atol=1e-9)
+    assert np.all(np.diff(levels, axis=0) <= 1e-15)  # a budget is only ever spent
     value = layer.storage.value(PASSIVE, trajectory)
     assert (value / value[0]).max() <= math.exp(budget) * (1 + 1e-7)
 
@@ -143,7 +133,7 @@ def test_the_tank_keeps_storage_plus_tank_from_rising(rng):
     layer = SafetyLayer.from_certificate(certified("tank:0.05"))
     trajectory, levels = run_loop(layer, adversarial(PASSIVE, seed=5), 1000, rng)
     value = layer.storage.value(PASSIVE, trajectory)
-    total = value[:-1] + levels[1:]  # just after each sample: the level after its jump is paid
+    total = value + levels  # just after each sample, its jump paid
     assert (np.diff(total, axis=0) / total[:-1]).max() < 1e-7
     assert levels.min() >= -1e-12
     kappa = layer.storage.kappa(trajectory.gains)
@@ -234,3 +224,17 @@ def test_the_certificate_says_what_it_covers():
     assert any("without a published proof" in a for a in frozen.assumptions)
     one = certify_gains(paper_setup(), GainBox.uniform((10.0, 10.0), (30.0, 60.0)), 1.0, 1.0)
     assert not any("without a published proof" in a for a in one.assumptions)
+
+
+@pytest.mark.parametrize("variation", ["scheduled:0.5", "tank"])
+def test_falsification_inside_the_class_respects_the_storage_bound(variation):
+    from teleopkit.robustness.adversary import SearchSpace
+    from teleopkit.robustness.search import search
+
+    space = SearchSpace(paper_setup(), certified(variation, paper_setup()), duration=6.0,
+                        segments=12)
+    assert space.params.torque_limit == math.inf and space.covered
+    result = search(space, "storage", "random", budget=16, population=8, seed=1)
+    assert result.storage_ratio <= result.storage_bound * (1 + 1e-6)
+    assert not result.finding and not result.diverged
+    assert "storage ratio" in result.summary()

@@ -44,6 +44,7 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
     for cert in results:
         verdict = "CERTIFIED" if cert.certified else "NOT CERTIFIED"
         lines += ["", f"[{cert.method}] {verdict} for {cert.gain_variation} gains",
+                  f"  covers          {cert.variation.describe()}",
                   f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"]
         if "margin_limit" in cert.details:
             limit, vertex = cert.details["margin_limit"], cert.details["margin_limit_vertex"]
@@ -51,6 +52,10 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
                          "alone)")
         label = "admissible" if cert.polytope_certified else "uncertified"
         lines += [f"  {f'{label} j{i + 1}':<16}{_polygon(cert, i)}" for i in range(box.n_joints)]
+        shapes = [text.split(": ")[1].replace("<=", "=") for text in cert.polytope.labels
+                  if text.startswith("common shape") and "<=" in text]
+        if shapes:
+            lines.append(f"  common shape    {', '.join(shapes)}")
         if cert.violation:
             lines.append(f"  violation       {cert.violation}")
         lines += [f"  assumes         {text}" for text in cert.assumptions]

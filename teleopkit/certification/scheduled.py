@@ -131,5 +131,5 @@ def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, t
                "refill": TANK_REFILL if variation.kind == "tank" else None}
     return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
                            float(margins.min()), box, polytope, low <= high,
-                           (*_COMMON, variation.describe(), guarantee), violation, details,
+                           (*_COMMON, guarantee), violation, details,
                            plant_record(params))

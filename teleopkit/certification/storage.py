@@ -82,6 +82,23 @@ class ScheduledStorage:
     tr_max: float
 
     @classmethod
+    def from_details(cls, details: dict) -> ScheduledStorage:
+        """The storage a certificate records (``details["storage"]``, lists read from JSON).
+
+        Parameters
+        ----------
+        details : dict
+            The fields of the storage.
+
+        Returns
+        -------
+        ScheduledStorage
+            The storage.
+        """
+        return cls(**{key: tuple(value) if isinstance(value, list | tuple) else float(value)
+                      for key, value in details.items()})
+
+    @classmethod
     def for_plant(cls, params: TeleoperatorParams, tl_max: float,
                   tr_max: float) -> ScheduledStorage:
         """The storage of ``params`` for the delay bounds ``(T_l*, T_r*)``.

@@ -388,7 +388,7 @@ _PLANT_LABELS = {
     "joints.stiffness": "joint stiffness S_r", "joints.rotor_inertia": "rotor inertia J_r",
     "local_gains.stiffness": "K_l", "local_gains.damping": "B_l",
     "operator.stiffness": "operator stiffness K_s", "operator.damping": "operator damping K_d",
-    "environment": "environment", "torque_limit": "torque limit",
+    "environment": "environment",
 }
 
 
@@ -407,7 +407,8 @@ def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
     """What a stability certificate depends on, as plain JSON-ready data, with a fingerprint.
 
     The plant is everything of ``params`` but the default remote gains (the tuner sets them),
-    the initial state and the operator's reference motion (neither enters a stability proof).
+    the initial state, the operator's reference motion and the torque limit: none of them
+    enters a stability proof (every certificate assumes torques below saturation).
 
     Parameters
     ----------
@@ -418,8 +419,7 @@ def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
     -------
     dict
         ``local_arm``, ``remote_arm``, ``joints``, ``local_gains``, ``operator`` (stiffness and
-        damping), ``environment``, ``torque_limit`` and ``fingerprint`` (SHA-256 of the rest,
-        16 hex digits).
+        damping), ``environment`` and ``fingerprint`` (SHA-256 of the rest, 16 hex digits).
     """
     record = {
         "local_arm": asdict(params.local_arm), "remote_arm": asdict(params.remote_arm),
@@ -428,7 +428,6 @@ def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
                      "damping": params.operator.damping},
         "environment": (asdict(params.environment) if isinstance(params.environment, Wall)
                         else params.environment),
-        "torque_limit": params.torque_limit,
     }
     record = _plain(record)
     digest = hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()[:16]
@@ -495,9 +494,9 @@ def plant_params(record: Mapping[str, Any]) -> TeleoperatorParams:
     Returns
     -------
     TeleoperatorParams
-        Arms, joints, local gains, operator spring and damper, environment and torque limit of
-        the record; remote gains ``K_r = 10, B_r = 30``, the operator holding the origin and
-        every position starting at zero.
+        Arms, joints, local gains, operator spring and damper and environment of the record;
+        remote gains ``K_r = 10, B_r = 30``, the operator holding the origin, every position
+        starting at zero and no torque saturation.
 
     Raises
     ------
@@ -516,6 +515,6 @@ def plant_params(record: Mapping[str, Any]) -> TeleoperatorParams:
             operator=Operator(**data["operator"], amplitudes=zeros, frequencies=zeros,
                               phases=zeros, decays=zeros),
             environment=environment if environment == "free" else Wall(**environment),
-            initial=InitialState(zeros, zeros, zeros), torque_limit=float(data["torque_limit"]))
+            initial=InitialState(zeros, zeros, zeros), torque_limit=math.inf)
     except (KeyError, TypeError, AttributeError) as error:
         raise ValueError(f"malformed plant record: {error}") from None

@@ -137,7 +137,7 @@ def _grid(layer: SafetyLayer, lower: np.ndarray, upper: np.ndarray, points: int)
     b = np.linspace(lower[n], upper[n], points)
     kk, bb = (x.ravel() for x in np.meshgrid(k, b))
     raw = np.column_stack([np.repeat(kk[:, None], n, 1), np.repeat(bb[:, None], n, 1)])
-    return np.unique(layer.project_batch(raw).action.round(12), axis=0)
+    return np.unique(layer.project_set(raw).round(12), axis=0)
 
 
 def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
@@ -178,13 +178,13 @@ def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
     start = candidates[int(np.argmin(grid_costs))]
 
     def objective(x: np.ndarray) -> float:
-        value = static_cost(layer.project(x).action, scenario, config).mean()
+        value = static_cost(layer.project_set(x), scenario, config).mean()
         return float(value) if math.isfinite(value) else 1e300
 
     result = minimize(objective, start, method="Nelder-Mead",
                       options={"maxfev": max_evaluations, "xatol": 1e-2, "fatol": 1e-3,
                                "initial_simplex": _simplex(start)})
-    gains = layer.project(result.x).action
+    gains = layer.project_set(result.x)
     cost = float(result.fun)
     if cost > grid_costs.min():  # never worse than the grid
         gains, cost = start, float(grid_costs.min())

@@ -20,7 +20,7 @@ _EXPORTS = {
     "falsify": "sampling",
     "sample_polytope": "sampling",
     "SearchResult": "search",
-    "SearchSpace": "search",
+    "SearchSpace": "adversary",
     "search": "search",
 }
 

@@ -266,6 +266,24 @@ class SafetyLayer:
         """
         return np.zeros((batch, 0))
 
+    def project_set(self, raw: np.ndarray) -> np.ndarray:
+        """The nearest points of the static set: no rate box, no floor, no state touched.
+
+        What constant gains can be: the set a fixed-gain baseline or a search chooses from.
+
+        Parameters
+        ----------
+        raw : ndarray, shape (B, 2 n) or (2 n,)
+            Raw actions (finite).
+
+        Returns
+        -------
+        ndarray, the shape of ``raw``
+            Their projections.
+        """
+        raw = np.asarray(raw, dtype=float)
+        return self.project_batch(np.atleast_2d(raw)).action.reshape(raw.shape)  # no prev
+
     def contains(self, actions: np.ndarray) -> np.ndarray:
         """Whether each action lies in the certified set (within ``1e-9``).
 

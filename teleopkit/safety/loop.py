@@ -11,7 +11,7 @@ import numpy as np
 
 from teleopkit.safety.layer import Projection, SafetyLayer
 from teleopkit.sim.simulator import Simulator
-from teleopkit.sim.trajectory import StepResult
+from teleopkit.sim.trajectory import StepResult, Trajectory
 
 __all__ = ["CertifiedLoop"]
 
@@ -106,3 +106,32 @@ class CertifiedLoop:
         result = simulator.advance(applied)
         self.layer.observe(result.state[-1])
         return result, projection
+
+    def run(self, simulator: Simulator, raw: np.ndarray) -> tuple[Trajectory, np.ndarray]:
+        """Run a whole episode on a schedule of raw gains.
+
+        Parameters
+        ----------
+        simulator : Simulator
+            The batch of scenarios (reset to ``t = 0``).
+        raw : ndarray, shape (P, B, 2 n)
+            Raw gains asked for in each control period.
+
+        Returns
+        -------
+        trajectory : Trajectory
+            The run with the applied gains.
+        levels : ndarray, shape (P + 1, B)
+            The layer's run-time state (budget or tank; NaN without one) just after each
+            sample, its jump paid: row ``k`` at ``t_k``, the last row at the end.
+        """
+        self.start(simulator)
+        parts, applied, levels = [simulator.initial_record()], [], []
+        for row in raw:
+            result, projection = self.step(row)
+            parts.append(result)
+            applied.append(projection.action)
+            levels.append(np.broadcast_to(projection.schedule, (simulator.batch,)))
+        final = self.layer.run_time_state(simulator.batch)
+        levels.append(final[:, 0] if final.shape[1] else np.full(simulator.batch, np.nan))
+        return Trajectory.join(parts, np.stack(applied)), np.stack(levels)

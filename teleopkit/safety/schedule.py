@@ -204,9 +204,7 @@ class ScheduleLayer(SafetyLayer):
         self.tol = float(tol)
         self.max_step = None
         self._qp: dict[bool, tuple[Any, Any, Any, Any]] = {}
-        self.storage = ScheduledStorage(**{key: tuple(value) if isinstance(value, list)
-                                           else value for key, value in
-                                           certificate.details["storage"].items()})
+        self.storage = ScheduledStorage.from_details(certificate.details["storage"])
         self._params = plant_params(certificate.plant)
         self._set = _step_set(certificate, self.storage)
         self._mode = BUDGET if variation.kind == "scheduled" else TANK
@@ -334,6 +332,30 @@ class ScheduleLayer(SafetyLayer):
         return Projection(result.action[0], float(result.distance[0]), result.active[0],
                           result.rate_active[0], FLAGS[result.fallback[0]],
                           float(result.schedule[0]))
+
+    def project_set(self, raw: np.ndarray) -> np.ndarray:
+        """The nearest points of the static set (the first step's set), leaving the state alone.
+
+        Parameters
+        ----------
+        raw : ndarray, shape (B, 2 n) or (2 n,)
+            Raw actions (finite).
+
+        Returns
+        -------
+        ndarray, the shape of ``raw``
+            Their projections: common shape, box and cone; constant gains of the class.
+        """
+        raw = np.asarray(raw, dtype=float)
+        flat = np.ascontiguousarray(np.atleast_2d(raw))
+        count = flat.shape[0]
+        out = np.empty_like(flat)
+        project_scheduled(flat, out, np.empty(count, dtype=np.int64), np.empty(count),
+                          np.empty(count), np.empty((count, len(self.labels)), dtype=np.bool_),
+                          self.tol, *self._set, np.full_like(flat, np.nan),
+                          np.full(count, self._initial), np.zeros(count), self._mode,
+                          self._refill, self._centre, *self._scratch)
+        return out.reshape(raw.shape)
 
     def project_batch(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
         """One control step of a batch: project onto the step's set, spend the budget or tank.
