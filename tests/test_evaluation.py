@@ -79,14 +79,19 @@ def test_evaluate_and_summarise(policy, tmp_path):
     summary = save_report(per, tmp_path, baseline="fixed")
     assert list(summary.index) == ["TD3", "fixed"]
     td3 = per[per["controller"] == "TD3"]
-    assert summary.loc["TD3", "cost_mean"] == pytest.approx(td3["cost"].mean())
+    assert summary.loc["TD3", "cost"] == pytest.approx(td3["cost"].mean())
     assert summary.loc["TD3", "cost_std"] == pytest.approx(td3["cost"].std())
     assert summary.loc["TD3", "cost_seed_std"] == pytest.approx(0.0)  # the same policy twice
     assert np.isnan(summary.loc["fixed", "cost_seed_std"])
     assert summary.loc["TD3", "policies"] == 2 and summary["unsafe_actions"].sum() == 0
     assert (per["rms_track"] > 0).all() and (per["iae_damp"] > 0).all()
     table = (tmp_path / "summary.md").read_text()
-    assert table.startswith("| controller | cost |") and "+0.0 %" in table
+    assert table.startswith("| controller | certificate | covered | cost |") and "+0.0 %" in table
+    saved = pd.read_csv(tmp_path / "summary.csv")
+    assert {"controller", "certificate", "covered", "cost", "rms_track", "rms_damp"} <= set(saved)
+    # a switching policy is not covered by the frozen default; constant gains are
+    assert summary.loc["fixed", "covered"] and summary.loc["fixed", "certificate"] == "frozen"
+    assert not summary.loc["TD3", "covered"] and (td3["gain_changes"] > 0).all()
     assert pd.read_csv(tmp_path / "per_scenario.csv").shape == per.shape
 
 

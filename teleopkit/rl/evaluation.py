@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from gymnasium.utils import seeding
 
+from teleopkit.certification.classes import parse_gain_variation
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
 from teleopkit.sim.trajectory import Trajectory
 
@@ -82,6 +83,8 @@ class Rollout:
         Rewards.
     unsafe_actions : int
         Applied actions outside the certified set (must be 0).
+    certificate : str
+        Gain class of the certificate the run was projected onto.
     """
 
     trajectory: Trajectory
@@ -89,6 +92,7 @@ class Rollout:
     raw: np.ndarray
     reward: np.ndarray
     unsafe_actions: int
+    certificate: str = "frozen"
 
     @property
     def t(self) -> np.ndarray:
@@ -101,7 +105,12 @@ class Rollout:
         return self.trajectory.gains[1:]
 
     def metrics(self) -> pd.DataFrame:
-        """Per-scenario errors, cost, mean gains and projection distance."""
+        """Per-scenario errors, cost, mean gains, projection distance and certificate coverage.
+
+        ``gain_changes`` counts the periods whose applied gains differ from the previous
+        period's; ``covered`` says whether the certificate's class covers that (constant gains
+        are covered by every class, changing gains by every class but ``frozen``).
+        """
         table = self.trajectory.metrics()
         table["cost"] = -self.reward.sum(axis=0)
         n = self.applied.shape[-1] // 2
@@ -110,6 +119,10 @@ class Rollout:
             table[f"mean_Br_{i + 1}"] = self.applied[:, :, n + i].mean(axis=0)
         table["projection_distance"] = np.linalg.norm(self.raw - self.applied, axis=-1).mean(0)
         table["unsafe_actions"] = self.unsafe_actions
+        changes = np.any(np.diff(self.applied, axis=0) != 0, axis=-1).sum(axis=0)
+        table["gain_changes"] = changes
+        table["certificate"] = self.certificate
+        table["covered"] = (changes == 0) | parse_gain_variation(self.certificate).covers_changes
         return table
 
     def to_frame(self, scenario: int = 0) -> pd.DataFrame:
@@ -174,11 +187,13 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
             records[key].append(value)
     arrays = {key: np.stack(value) for key, value in records.items()}
     trajectory = Trajectory.join(parts, np.stack(applied))
-    return Rollout(trajectory, unsafe_actions=core.unsafe_actions, **arrays)
+    return Rollout(trajectory, unsafe_actions=core.unsafe_actions,
+                   certificate=core.certificate.gain_variation, **arrays)
 
 
 def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scenarios: int = 32,
-             seed: int = EVAL_SEED, config: FlexTeleopConfig | None = None) -> pd.DataFrame:
+             seed: int = EVAL_SEED, config: FlexTeleopConfig | None = None,
+             configs: Mapping[str, FlexTeleopConfig] | None = None) -> pd.DataFrame:
     """Per-scenario metrics of every controller on the same held-out scenarios.
 
     Parameters
@@ -191,6 +206,9 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
         Evaluation seed.
     config : FlexTeleopConfig, optional
         Environment settings.
+    configs : mapping of str to FlexTeleopConfig, optional
+        Settings of particular controllers (for example another certificate), by name;
+        ``config`` for the others.
 
     Returns
     -------
@@ -201,7 +219,8 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
     for name, entry in controllers.items():
         policies = list(entry) if isinstance(entry, Sequence) else [entry]
         for index, policy in enumerate(policies):
-            table = rollout(policy, scenarios, seed, config).metrics().reset_index()
+            settings = (configs or {}).get(name, config)
+            table = rollout(policy, scenarios, seed, settings).metrics().reset_index()
             table.insert(0, "policy", index)
             table.insert(0, "controller", name)
             frames.append(table)
@@ -226,16 +245,19 @@ def summarise(per_scenario: pd.DataFrame,
     Returns
     -------
     pandas.DataFrame
-        Indexed by controller (in input order): ``<metric>_mean``, ``<metric>_std`` (over all
-        scenarios and policies), ``<metric>_seed_std`` (over the per-policy means; NaN for one
-        policy), plus ``policies``, ``scenarios`` and the total ``unsafe_actions``.
+        Indexed by ``controller`` (in input order): ``certificate`` (the gain class it ran
+        under), ``covered`` (whether that class covers what it did with the gains, in every
+        scenario), then per metric its mean ``<metric>``, ``<metric>_std`` (over all scenarios
+        and policies) and ``<metric>_seed_std`` (over the per-policy means; NaN for one policy),
+        plus ``policies``, ``scenarios`` and the total ``unsafe_actions``.
     """
     order = list(dict.fromkeys(per_scenario["controller"]))
     grouped = per_scenario.groupby("controller", sort=False)
     per_policy = per_scenario.groupby(["controller", "policy"], sort=False)[list(metrics)].mean()
-    columns: dict[str, pd.Series] = {}
+    columns: dict[str, pd.Series] = {"certificate": grouped["certificate"].first(),
+                                     "covered": grouped["covered"].all()}
     for metric in metrics:
-        columns[f"{metric}_mean"] = grouped[metric].mean()
+        columns[metric] = grouped[metric].mean()
         columns[f"{metric}_std"] = grouped[metric].std(ddof=1)
         columns[f"{metric}_seed_std"] = per_policy[metric].groupby(level=0, sort=False).std(ddof=1)
     columns["policies"] = grouped["policy"].nunique()
@@ -247,7 +269,7 @@ def summarise(per_scenario: pd.DataFrame,
 
 def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = SUMMARY_METRICS,
                 baseline: str | None = None) -> str:
-    """A markdown table of ``mean ± std`` per controller (no extra dependency).
+    """A markdown table of ``mean ± std`` per controller, with its certificate and coverage.
 
     Parameters
     ----------
@@ -264,19 +286,19 @@ def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = SUMMARY_METRICS,
     str
         The table.
     """
-    header = ["controller", *metrics]
+    header = ["controller", "certificate", "covered", *metrics]
     if baseline is not None:
         header.append(f"cost vs {baseline}")
     lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
     for name, row in summary.iterrows():
-        cells = [str(name)]
+        cells = [str(name), str(row["certificate"]), "yes" if row["covered"] else "no"]
         for metric in metrics:
-            cell = f"{row[f'{metric}_mean']:.4g} ± {row[f'{metric}_std']:.2g}"
+            cell = f"{row[metric]:.4g} ± {row[f'{metric}_std']:.2g}"
             if row["policies"] > 1:
                 cell += f" (seeds ± {row[f'{metric}_seed_std']:.2g})"
             cells.append(cell)
         if baseline is not None:
-            change = row["cost_mean"] / summary.loc[baseline, "cost_mean"] - 1
+            change = row["cost"] / summary.loc[baseline, "cost"] - 1
             cells.append(f"{100 * change:+.1f} %")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
