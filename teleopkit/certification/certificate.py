@@ -146,31 +146,45 @@ class GainCertificate:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
-    def from_json(cls, text: str) -> GainCertificate:
-        """Inverse of :meth:`to_json`; raises ValueError on malformed text.
+    def from_json(cls, text: str, verify: bool = True) -> GainCertificate:
+        """Inverse of :meth:`to_json`, re-checked: nothing unverified reaches the plant.
 
         Parameters
         ----------
         text : str
             JSON text as :meth:`to_json` writes it.
+        verify : bool
+            Re-check the certificate (:meth:`verify`); only for data already verified.
 
         Returns
         -------
         GainCertificate
             The certificate.
+
+        Raises
+        ------
+        ValueError
+            One line: malformed text, or a certificate that does not check out (edited, or
+            for a plant its record does not match).
         """
         try:
             data = json.loads(text)
             ranges = data["box"]
             box = GainBox(tuple(map(tuple, ranges["kr"])), tuple(map(tuple, ranges["br"])))
             margin = data["delay_margin"]
-            return cls(bool(data["certified"]), str(data["method"]), str(data["gain_variation"]),
-                       tuple(data["delay_bounds"]), math.inf if margin == "inf" else float(margin),
-                       box, GainPolytope.from_dict(data["polytope"]),
-                       bool(data["polytope_certified"]), tuple(data["assumptions"]),
-                       data["violation"], dict(data["details"]), dict(data.get("plant", {})))
+            certificate = cls(bool(data["certified"]), str(data["method"]),
+                              str(data["gain_variation"]),
+                              tuple(data["delay_bounds"]),
+                              math.inf if margin == "inf" else float(margin), box,
+                              GainPolytope.from_dict(data["polytope"]),
+                              bool(data["polytope_certified"]), tuple(data["assumptions"]),
+                              data["violation"], dict(data["details"]),
+                              dict(data.get("plant", {})))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
+        if verify:
+            certificate.verify()
+        return certificate
 
 
 def _json_float(value: float) -> float | str:

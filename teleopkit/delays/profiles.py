@@ -14,11 +14,14 @@ switching between the extremes) and :class:`TraceDelay` (a recorded trace, e.g. 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol
 
 import numpy as np
+
+from teleopkit.delays.units import UNITS, column_unit
 
 __all__ = [
     "PAPER_DELAY_MAX",
@@ -159,6 +162,21 @@ def declared_bound(values: np.ndarray, bound: float) -> float:
         The bound in seconds.
     """
     return float(np.max(values)) if math.isnan(bound) else float(bound)
+
+
+def _trace_column(path: object, columns: Sequence[str], names: tuple[str, ...],
+                  unit: str | None) -> tuple[str, float]:
+    """The one column of a trace whose base name is in ``names``, and its unit in seconds."""
+    found = [(column, factor) for column in columns
+             for base, factor in [column_unit(str(column))] if base in names]
+    if len(found) != 1:
+        what = "no" if not found else "more than one"
+        raise ValueError(f"delay trace {path} has {what} {names[0]} column ({' or '.join(names)}"
+                         f", optionally with _s, _ms or _us); its columns: "
+                         f"{', '.join(map(str, columns))}")
+    column, factor = found[0]
+    plain = column_unit(str(column))[0] == str(column).strip().lower()
+    return column, (UNITS[unit] if unit is not None and plain else factor)
 
 
 def _times(t: np.ndarray) -> np.ndarray:
@@ -436,38 +454,46 @@ class TraceDelay:
         object.__setattr__(self, "bound", declared_bound(delays, self.bound))
 
     @classmethod
-    def from_csv(cls, path: str | Path, time_column: str = "t",
-                 delay_column: str = "delay", bound: float = math.nan) -> TraceDelay:
-        """Read a trace from a CSV file with a time and a delay column (seconds).
+    def from_csv(cls, path: str | Path, unit: str | None = None,
+                 bound: float = math.nan) -> TraceDelay:
+        """Read a trace from a CSV file with a time and a delay column, by column name.
+
+        The time column is ``t`` or ``time``, the delay column ``delay`` or ``latency``, each
+        with an optional unit suffix (``_s``, ``_ms``, ``_us``; seconds without one), for
+        example ``t,delay_ms``. Other headers are refused, naming the columns found.
 
         Parameters
         ----------
         path : str or Path
             CSV file.
-        time_column, delay_column : str
-            Column names; when absent, the first two columns are used.
+        unit : {"s", "ms", "us"}, optional
+            Unit of both columns when their names carry none (seconds by default).
         bound : float, optional
-            Declared bound; defaults to the trace's maximum.
+            Declared bound in seconds; defaults to the trace's maximum.
 
         Returns
         -------
         TraceDelay
-            The trace.
+            The trace, in seconds.
+
+        Raises
+        ------
+        ValueError
+            One line: unreadable file, missing or ambiguous columns, non-numeric values.
         """
         import pandas as pd
 
+        if unit is not None and unit not in UNITS:
+            raise ValueError(f"delay trace unit must be one of {', '.join(UNITS)}, got {unit!r}")
         try:
             table = pd.read_csv(path)
         except (OSError, ValueError, pd.errors.ParserError) as error:
-            raise ValueError(f"cannot read delay trace {path}: {error}") from None
-        if {time_column, delay_column} <= set(table.columns):
-            columns = [time_column, delay_column]
-        elif table.shape[1] >= 2:
-            columns = list(table.columns[:2])
-        else:
-            raise ValueError(f"delay trace {path} needs a time and a delay column")
+            reason = getattr(error, "strerror", None) or str(error).splitlines()[0]
+            raise ValueError(f"cannot read delay trace {path}: {reason}") from None
+        columns = [_trace_column(path, table.columns, names, unit)
+                   for names in (("t", "time"), ("delay", "latency"))]
         try:
-            times, delays = (table[c].to_numpy(dtype=float) for c in columns)
+            times, delays = (table[c].to_numpy(dtype=float) * scale for c, scale in columns)
         except ValueError:
             raise ValueError(f"delay trace {path} has non-numeric values") from None
         return cls(times, delays, bound)

@@ -1,4 +1,8 @@
-"""Delay profiles from short text specs (the command line's ``--delay``, campaign factors)."""
+"""Delay profiles from short text specs (the command line's ``--delay``, campaign factors).
+
+Times are in seconds unless they say otherwise (``500ms``): a bare ``500`` is 500 seconds, and
+:func:`check_duration` refuses delays that long for a run of 40 s, suggesting the unit.
+"""
 
 from __future__ import annotations
 
@@ -12,20 +16,29 @@ from teleopkit.delays.profiles import (
     SwitchingDelay,
     TraceDelay,
 )
+from teleopkit.delays.units import seconds
 
-__all__ = ["parse_delay"]
+__all__ = ["check_duration", "parse_delay"]
+
+
+_SPECS = "paper, constant:T, sine:MEAN:AMP:FREQ, switching:LOW:HIGH:DWELL or csv:PATH"
+_TIMES = {"constant": ("delay",), "sine": ("mean", "amplitude", "frequency"),
+          "switching": ("low", "high", "dwell")}
 
 
 def parse_delay(spec: str, rng: np.random.Generator | None = None,
                 ) -> tuple[DelayProfile, DelayProfile]:
     """Build the forward (``T_l``) and backward (``T_r``) profiles from a command-line spec.
 
+    Times are seconds unless they carry a unit: ``constant:500ms`` is ``constant:0.5``.
+
     Parameters
     ----------
     spec : str
         ``paper`` (the Fourier profile with scales drawn from ``U[0.5, 1]``), ``constant:T``,
-        ``sine:MEAN:AMPLITUDE:FREQUENCY``, ``switching:LOW:HIGH:DWELL`` (adversarial extremes) or
-        ``csv:PATH`` (the same trace on both channels).
+        ``sine:MEAN:AMPLITUDE:FREQUENCY`` (frequency in Hz), ``switching:LOW:HIGH:DWELL``
+        (adversarial extremes) or ``csv:PATH`` (the same trace on both channels, columns named
+        with their units: :meth:`~teleopkit.delays.profiles.TraceDelay.from_csv`).
     rng : numpy.random.Generator, optional
         Source of the paper profile's scales and the switching seed.
 
@@ -33,30 +46,63 @@ def parse_delay(spec: str, rng: np.random.Generator | None = None,
     -------
     tuple of DelayProfile
         Forward and backward profiles.
+
+    Raises
+    ------
+    ValueError
+        One line naming the spec and what is wrong with it.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
-    kind, _, rest = spec.partition(":")
+    kind, _, rest = str(spec).strip().partition(":")
+    if kind == "paper" and not rest:
+        scales = rng.uniform(0.5, 1.0, size=2)  # the paper's g_m, g_s
+        return FourierDelay(scales[0]), FourierDelay(scales[1])
+    if kind == "csv" and rest:
+        trace = TraceDelay.from_csv(rest)
+        return trace, trace
+    names = _TIMES.get(kind)
+    parts = rest.split(":") if rest else []
+    if names is None or len(parts) != len(names):
+        raise ValueError(f"unknown delay spec {spec!r}; use {_SPECS}")
+    values = [_number(part, name) if name == "frequency" else seconds(part, f"{kind} {name}")
+              for part, name in zip(parts, names, strict=True)]
+    if kind == "constant":
+        return ConstantDelay(values[0]), ConstantDelay(values[0])
+    if kind == "sine":
+        mean, amplitude, frequency = values
+        return (SinusoidalDelay(mean, amplitude, frequency),
+                SinusoidalDelay(mean, amplitude, frequency, phase=np.pi / 2))
+    low, high, dwell = values
+    seed = int(rng.integers(2**31))
+    return (SwitchingDelay(low, high, dwell, "extremes", seed),
+            SwitchingDelay(low, high, dwell, "extremes", seed + 1))
+
+
+def _number(text: str, name: str) -> float:
     try:
-        if kind == "paper" and not rest:
-            scales = rng.uniform(0.5, 1.0, size=2)
-            return FourierDelay(scales[0]), FourierDelay(scales[1])
-        if kind == "csv" and rest:
-            trace = TraceDelay.from_csv(rest)
-            return trace, trace
-        numbers = [float(x) for x in rest.split(":")] if rest else []
-        if kind == "constant" and len(numbers) == 1:
-            return ConstantDelay(numbers[0]), ConstantDelay(numbers[0])
-        if kind == "sine" and len(numbers) == 3:
-            mean, amplitude, frequency = numbers
-            return (SinusoidalDelay(mean, amplitude, frequency),
-                    SinusoidalDelay(mean, amplitude, frequency, phase=np.pi / 2))
-        if kind == "switching" and len(numbers) == 3:
-            low, high, dwell = numbers
-            seed = int(rng.integers(2**31))
-            return (SwitchingDelay(low, high, dwell, "extremes", seed),
-                    SwitchingDelay(low, high, dwell, "extremes", seed + 1))
-    except ValueError as error:
-        if "could not convert" not in str(error):
-            raise
-    raise ValueError(f"unknown delay spec {spec!r}; use paper, constant:T, sine:MEAN:AMP:FREQ, "
-                     f"switching:LOW:HIGH:DWELL or csv:PATH")
+        return float(text)
+    except ValueError:
+        raise ValueError(f"sine {name} must be a number (Hz), got {text!r}") from None
+
+
+def check_duration(profiles: tuple[DelayProfile, DelayProfile], duration: float) -> None:
+    """Refuse delays that reach the run's length: almost always a number meant in ms.
+
+    Parameters
+    ----------
+    profiles : tuple of DelayProfile
+        Forward and backward delays.
+    duration : float
+        Length of the run in seconds.
+
+    Raises
+    ------
+    ValueError
+        One line with the delay, the duration and the unit to use.
+    """
+    bound = max(profile.bound for profile in profiles)
+    if bound >= duration:
+        hint = (f"; delays are in seconds: {bound:g} milliseconds is written {bound:g}ms (a "
+                "trace column delay_ms)" if bound > 1 else "")
+        raise ValueError(f"the delay reaches {bound:g} s, not shorter than the {duration:g} s "
+                         f"run{hint}")

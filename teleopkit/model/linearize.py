@@ -91,6 +91,16 @@ def rest_systems(params: TeleoperatorParams, action: np.ndarray) -> list[LinearD
     return systems
 
 
+def _per_joint(name: str, values: np.ndarray | float, n: int) -> np.ndarray:
+    """One finite non-negative gain per joint (a scalar is every joint's)."""
+    array = np.asarray(values, dtype=float)
+    if array.ndim > 1 or array.size not in (1, n):
+        raise ValueError(f"{name} needs 1 or {n} values (one per joint), got shape {array.shape}")
+    if not np.all(np.isfinite(array)) or np.any(array < 0):
+        raise ValueError(f"{name} must be finite and non-negative, got {array.tolist()}")
+    return np.broadcast_to(array.reshape(-1), n).copy() if array.size == 1 else array
+
+
 def _diag(values: tuple[float, ...] | np.ndarray) -> np.ndarray:
     return np.diag(np.asarray(values, dtype=float))
 
@@ -119,7 +129,7 @@ def linearized_system(params: TeleoperatorParams, kr: np.ndarray | float, br: np
     eye, zero = np.eye(n), np.zeros((n, n))
     kl, bl = _diag(params.local_gains.stiffness), _diag(params.local_gains.damping)
     ks, kd = params.operator.stiffness * eye, params.operator.damping * eye
-    k_r, b_r = np.diag(np.broadcast_to(kr, n)), np.diag(np.broadcast_to(br, n))
+    k_r, b_r = np.diag(_per_joint("K_r", kr, n)), np.diag(_per_joint("B_r", br, n))
     s = _diag(params.joints.stiffness)
     a0 = np.block([
         [zero, eye, zero, zero, zero, zero],

@@ -124,8 +124,11 @@ class GainPolicy:
                 metadata = json.loads(str(data["metadata"]))
                 return cls(weights, data["obs_mean"], data["obs_std"], data["low"],
                            data["span"], metadata)
-        except (KeyError, ValueError, EOFError, zipfile.BadZipFile) as error:
-            raise ValueError(f"{path} is not a teleopkit policy file ({error})") from None
+        except KeyError as error:
+            raise ValueError(f"{path} is not a teleopkit policy file (no {error} array)") from None
+        except (ValueError, EOFError, OSError, zipfile.BadZipFile):
+            raise ValueError(f"{path} is not a teleopkit policy file (not an .npz archive "
+                             "written by GainPolicy.save)") from None
 
     @classmethod
     def pretrained(cls) -> GainPolicy:

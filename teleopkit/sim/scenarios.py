@@ -13,7 +13,15 @@ import numpy as np
 from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
-__all__ = ["Scenario", "paper_scenarios", "sample_reference_gains"]
+__all__ = ["PAPER_DELAY_BOUND", "PAPER_SCALES", "Scenario", "paper_scenarios",
+           "sample_reference_gains"]
+
+PAPER_SCALES = (0.5, 1.0)
+"""Range of the per-episode delay scales ``g_m, g_s`` of :func:`paper_scenarios`."""
+
+PAPER_DELAY_BOUND = PAPER_SCALES[1]
+"""Largest delay of :func:`paper_scenarios` in seconds: the scale times the Fourier profile,
+which :class:`~teleopkit.delays.profiles.FourierDelay` keeps within 1 s."""
 
 
 @dataclass(frozen=True)
@@ -107,8 +115,10 @@ def paper_scenarios(rng: np.random.Generator | int = 0, batch: int = 1,
     >>> scenario.batch, bool(round(scenario.delay_bound, 3) <= 1.001)
     (4, True)
     """
+    if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
+        raise ValueError(f"batch must be a whole number of scenarios >= 1, got {batch!r}")
     rng = np.random.default_rng(rng)
     params = params if params is not None else paper_setup()
     reference = sample_reference_gains(rng, batch, params.n_joints)
-    scales = rng.uniform(0.5, 1.0, size=(2, batch))
+    scales = rng.uniform(*PAPER_SCALES, size=(2, batch))
     return Scenario(params, FourierDelay(scales[0]), FourierDelay(scales[1]), reference)

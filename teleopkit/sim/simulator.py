@@ -15,14 +15,15 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from teleopkit.delays.profiles import DelayProfile
-from teleopkit.delays.spec import parse_delay
+from teleopkit.delays.profiles import ConstantDelay, DelayProfile
+from teleopkit.delays.spec import check_duration, parse_delay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
+from teleopkit.sim.timing import periods as whole_periods
 from teleopkit.sim.trajectory import StepResult, Trajectory
 
 __all__ = ["Simulator", "check_gains", "simulate", "simulate_trajectory"]
@@ -211,6 +212,42 @@ class Simulator:
         self._step += periods * self.substeps
         return StepResult(stages[ends] * self.dt, state, delayed, end_delays)
 
+    def record_bytes(self, periods: int) -> int:
+        """Memory a :meth:`run` of ``periods`` control periods records, in bytes.
+
+        Parameters
+        ----------
+        periods : int
+            Control periods.
+
+        Returns
+        -------
+        int
+            States, delayed signals, delays and gains of every recorded time.
+        """
+        n = self.n_joints
+        return 8 * (periods + 1) * self.batch * (self.layout.size + 2 * n + 2 + 2 * n)
+
+    def check_memory(self, periods: int) -> None:
+        """Refuse a run whose record would not fit in half the memory available now.
+
+        Parameters
+        ----------
+        periods : int
+            Control periods.
+
+        Raises
+        ------
+        ValueError
+            One line with the run's size and the memory available.
+        """
+        need, free = self.record_bytes(periods), available_memory()
+        if need > free / 2:
+            raise ValueError(f"a run of {periods * self.control_period:g} s of {self.batch} "
+                             f"scenario(s) records {need / 1e9:.3g} GB, more than half the "
+                             f"{free / 1e9:.3g} GB of memory available; simulate shorter runs "
+                             "(Simulator.advance streams them)")
+
     def run(self, duration: float, gains: np.ndarray | None = None,
             chunk: float = 1.0) -> Trajectory:
         """Reset and simulate ``duration`` seconds, recording every control period.
@@ -218,7 +255,7 @@ class Simulator:
         Parameters
         ----------
         duration : float
-            Length of the run in seconds (rounded to whole control periods).
+            Length of the run in seconds, a whole number of control periods.
         gains : ndarray, optional
             Remote gains: ``(2 n,)`` or ``(B, 2 n)`` constant, or ``(P, B, 2 n)`` one row per
             period; the scenario's ``remote_gains`` by default.
@@ -230,9 +267,8 @@ class Simulator:
         Trajectory
             The run, from ``t = 0`` (initial row included).
         """
-        if not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration must be positive, got {duration}")
-        periods = max(1, round(duration / self.control_period))
+        periods = whole_periods(duration, self.control_period)
+        self.check_memory(periods)
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
         gains = check_gains(gains, self.n_joints)
@@ -248,9 +284,20 @@ class Simulator:
         return Trajectory.join(parts, gains)
 
 
+def available_memory() -> int:
+    """Bytes of memory available to this process now (physical pages not in use)."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # not POSIX: no limit known
+        return 2**62
+
+
 def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
                         duration: float = 40.0,
-                        delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+                        delay: str | float | tuple[DelayProfile, DelayProfile] = "paper",
+                        seed: int = 0,
                         params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
                         control_period: float = CONTROL_PERIOD) -> Trajectory:
     """Simulate one scenario; the arguments of :func:`simulate`, the run as a trajectory.
@@ -262,8 +309,9 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
         ``remote_gains`` by default.
     duration : float
         Length in seconds.
-    delay : str or (DelayProfile, DelayProfile)
-        A spec for :func:`teleopkit.delays.parse_delay` or the forward and backward profiles.
+    delay : str, float or (DelayProfile, DelayProfile)
+        A spec for :func:`teleopkit.delays.parse_delay`, a constant delay in seconds, or the
+        forward and backward profiles.
     seed : int
         Seed of the operator's reference gains and of random delay parameters.
     params : TeleoperatorParams, optional
@@ -277,11 +325,20 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
     -------
     Trajectory
         The run of one scenario.
+
+    Raises
+    ------
+    ValueError
+        On bad input, including delays as long as the run (a number meant in milliseconds).
     """
     params = params if params is not None else paper_setup()
     rng = np.random.default_rng(seed)
     reference = sample_reference_gains(rng, 1, params.n_joints)
+    if isinstance(delay, int | float) and not isinstance(delay, bool):
+        delay = (ConstantDelay(float(delay)), ConstantDelay(float(delay)))
     forward, backward = parse_delay(delay, rng) if isinstance(delay, str) else delay
+    whole_periods(duration, control_period)
+    check_duration((forward, backward), duration)
     action = None
     if gains is not None:
         gains = np.asarray(gains, dtype=float)
@@ -291,7 +348,7 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
 
 
 def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
-             delay: str | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+             delay: str | float | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
              params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
              control_period: float = CONTROL_PERIOD) -> pd.DataFrame:
     """Simulate one scenario and return it as a table.

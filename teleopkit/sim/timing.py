@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["CONTROL_PERIOD", "DEFAULT_DT", "substeps"]
+__all__ = ["CONTROL_PERIOD", "DEFAULT_DT", "periods", "substeps"]
 
 DEFAULT_DT = 0.00125
 """Default integration step (s): 8 RK4 steps per 10 ms control period, at most 7e-6 rad from a
@@ -46,4 +46,33 @@ def substeps(control_period: float, dt: float) -> int:
     if count < 1 or abs(count * dt - control_period) > 1e-9 * control_period:
         raise ValueError(f"control period {control_period:g} s must be a positive multiple of "
                          f"the integration step {dt:g} s")
+    return count
+
+
+def periods(duration: float, control_period: float = CONTROL_PERIOD) -> int:
+    """Control periods in a run; the one check that the run is a whole number of them.
+
+    Parameters
+    ----------
+    duration : float
+        Length of the run in seconds.
+    control_period : float
+        Gain hold period in seconds.
+
+    Returns
+    -------
+    int
+        ``duration / control_period``, at least 1.
+
+    Raises
+    ------
+    ValueError
+        If the duration is not positive and finite or not a whole number of periods.
+    """
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be positive and finite, got {duration:g} s")
+    count = round(duration / control_period)
+    if count < 1 or abs(count * control_period - duration) > 1e-9 * duration:
+        raise ValueError(f"duration {duration:g} s is not a whole number of control periods of "
+                         f"{control_period:g} s")
     return count

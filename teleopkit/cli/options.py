@@ -1,0 +1,229 @@
+"""What the commands share: option parsers and the checks made before anything runs.
+
+Every check raises :class:`click.BadParameter` naming the option and the value, so the command
+line prints one line (``Invalid value for '--out': ...``) and exits with 2. Outputs are checked
+before a run starts, so a bad path never leaves half the results behind.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+
+if TYPE_CHECKING:
+    from teleopkit.certification.certificate import GainCertificate
+    from teleopkit.certification.classes import GainVariation
+
+__all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
+           "check_output_dir", "delay_spec", "gain_variation", "gains", "load_certificate",
+           "single_thread"]
+
+IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
+"""Figure formats the plots can be written in (matplotlib's, by suffix)."""
+
+
+def _bad(option: str, message: str) -> click.BadParameter:
+    return click.BadParameter(message, param_hint=f"'{option}'")
+
+
+def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) -> list[float]:
+    """Option callback: ``K`` or ``K1,K2`` as one non-negative finite number per joint.
+
+    Parameters
+    ----------
+    ctx : click.Context or None
+        Unused.
+    param : click.Parameter or None
+        The option (for the message).
+    value : str
+        The text given.
+
+    Returns
+    -------
+    list of float
+        Two numbers (the paper's two joints).
+    """
+    name = f"--{param.name}" if param is not None and param.name else "gain"
+    try:
+        numbers = [float(x) for x in value.split(",")]
+    except ValueError:
+        raise _bad(name, f"needs a number or two separated by a comma, got {value!r}") from None
+    numbers = numbers * 2 if len(numbers) == 1 else numbers
+    if len(numbers) != 2:
+        raise _bad(name, f"needs 1 or 2 values (one per joint), got {len(numbers)}")
+    if not all(math.isfinite(v) and v >= 0 for v in numbers):
+        raise _bad(name, f"must be finite and non-negative, got {value!r}")
+    return numbers
+
+
+def gain_variation(ctx: click.Context | None, param: click.Parameter | None,
+                   value: str) -> GainVariation:
+    """Option callback: a gain class (:func:`~teleopkit.certification.parse_gain_variation`).
+
+    Parameters
+    ----------
+    ctx : click.Context or None
+        Unused.
+    param : click.Parameter or None
+        The option.
+    value : str
+        The class as text.
+
+    Returns
+    -------
+    GainVariation
+        The class.
+    """
+    from teleopkit.certification.classes import parse_gain_variation
+
+    try:
+        return parse_gain_variation(value)
+    except ValueError as error:
+        raise _bad("--gain-variation", str(error)) from None
+
+
+def delay_spec(ctx: click.Context | None, param: click.Parameter | None, value: str) -> str:
+    """Option callback: a delay spec that :func:`~teleopkit.delays.parse_delay` reads.
+
+    Parameters
+    ----------
+    ctx : click.Context or None
+        Unused.
+    param : click.Parameter or None
+        The option.
+    value : str
+        The spec.
+
+    Returns
+    -------
+    str
+        The spec, checked (traces are read once here).
+    """
+    from teleopkit.delays.spec import parse_delay
+
+    try:
+        parse_delay(value)
+    except ValueError as error:
+        raise _bad("--delay", str(error)) from None
+    return value
+
+
+def check_output(path: Path, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
+    """Refuse an output file that cannot be written, before anything runs.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    option : str
+        Its option, for the message.
+    suffixes : tuple of str, optional
+        Accepted suffixes (lower case, with the dot).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise _bad(option, f"needs a file name ending in {', '.join(suffixes)}, got "
+                           f"{path.name!r}")
+    if path.is_dir():
+        raise _bad(option, f"{path} is a directory, not a file")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise _bad(option, f"directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise _bad(option, f"{path} is not writable")
+    return path
+
+
+def check_output_dir(path: Path, option: str) -> Path:
+    """Refuse an output directory that cannot be created or written, before anything runs.
+
+    Parameters
+    ----------
+    path : Path
+        The directory (created later, with its parents, if needed).
+    option : str
+        Its option, for the message.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    if path.exists() and not path.is_dir():
+        raise _bad(option, f"{path} is a file, not a directory")
+    existing = path
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise _bad(option, f"{existing} is not a writable directory")
+    return path
+
+
+def check_disk(path: Path, size: int, option: str) -> None:
+    """Refuse an output that would not fit on its disk.
+
+    Parameters
+    ----------
+    path : Path
+        The file (its directory must exist).
+    size : int
+        Estimated size in bytes.
+    option : str
+        Its option, for the message.
+    """
+    free = shutil.disk_usage(path.parent if str(path.parent) else ".").free
+    if size > free:
+        raise _bad(option, f"the output would take about {size / 1e9:.3g} GB, more than the "
+                           f"{free / 1e9:.3g} GB free on its disk")
+
+
+def load_certificate(path: Path) -> GainCertificate:
+    """Read a certificate file and re-check it: nothing unverified reaches the plant.
+
+    Parameters
+    ----------
+    path : Path
+        JSON written by ``teleopkit certify --json``.
+
+    Returns
+    -------
+    GainCertificate
+        The certificate, verified.
+    """
+    from teleopkit.certification.certificate import GainCertificate
+
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as error:
+        reason = getattr(error, "strerror", None) or str(error)
+        raise _bad("--certificate", f"cannot read {path}: {reason}") from None
+    try:
+        certificate = GainCertificate.from_json(text)
+    except ValueError as error:
+        raise _bad("--certificate", f"{path}: {error}") from None
+    return certificate
+
+
+def certificate_option(function: Any) -> Any:
+    """The ``--certificate FILE`` option of the commands that run a safety layer."""
+    return click.option(
+        "--certificate", type=click.Path(dir_okay=False, path_type=Path), default=None,
+        help="Gain certificate (the JSON of teleopkit certify --json) whose set the safety "
+             "layer projects onto; it must be for this plant and these delays [default: the "
+             "closed form on K_r in [1, 50], B_r in [1, 150], T* = 1 s].")(function)
+
+
+def single_thread() -> None:
+    """One torch thread: the second core belongs to the simulator or to other work."""
+    import torch
+
+    torch.set_num_threads(1)
