@@ -183,14 +183,20 @@ def test_a_foreign_history_is_refused():
         layer.project_batch(np.ones((3, 4)))
 
 
-@settings(deadline=None, max_examples=60)
-@given(arrays(np.float64, (8, 4), elements=st.floats(-100.0, 300.0)))
-def test_torch_projection_is_the_layers_static_projection(raw):
-    layer = SafetyLayer.from_certificate(certified("scheduled:1"))
-    got = torch_projection(layer)(torch.as_tensor(raw)).numpy()
-    for row, expected in zip(raw, got, strict=True):
-        layer.reset()  # the first step of an episode has no floor: the static set
-        np.testing.assert_allclose(layer.project(row).action, expected, rtol=0, atol=1e-9)
+@pytest.mark.parametrize("variation", ["scheduled:0.4", "tank:0.02"])
+def test_torch_projection_is_the_layers_projection_at_every_step(variation, rng):
+    """The actor is trained through the step's set: floor from the observed run-time state."""
+    layer = SafetyLayer.from_certificate(certified(variation))
+    loop = CertifiedLoop(layer)
+    loop.start(adversarial(PASSIVE, batch=4))
+    projection = torch_projection(layer)
+    for _ in range(60):
+        raw = rng.uniform(-20.0, 200.0, (4, 4))
+        state = layer.run_time_state(4)
+        obs = torch.as_tensor(np.concatenate([np.zeros((4, 14)), state], axis=1))
+        expected = projection(torch.as_tensor(raw), obs).numpy()
+        _, applied = loop.step(raw)
+        np.testing.assert_allclose(applied.action, expected, rtol=1e-10, atol=1e-9)
 
 
 @pytest.mark.parametrize("variation", ["scheduled:1", "tank", "tank:0.25"])
@@ -201,7 +207,8 @@ def test_certificate_round_trip_and_verify(variation):
     assert loaded.gain_variation == variation and loaded.certified is False
     assert loaded.polytope_certified and loaded.details["storage"]["cone"] == [2.5, 2.5]
     layer = SafetyLayer.from_certificate(loaded)
-    assert layer.stateful and layer.run_time_state(2).shape == (2, 1)
+    columns = 3 if variation.startswith("tank") else 2
+    assert layer.stateful and layer.run_time_state(2).shape == (2, columns)
 
 
 def test_a_tampered_scheduled_certificate_is_refused():

@@ -341,7 +341,7 @@ class TD3:
             raw = self.actor_target(batch.next_obs)
             noise = torch.randn(raw.shape, generator=self.generator) * cfg.target_noise
             noise = noise.clamp(-cfg.target_noise_clip, cfg.target_noise_clip) * self.half_range
-            next_action = self.projection(raw + noise)
+            next_action = self.projection(raw + noise, batch.next_obs)
             q_next = torch.minimum(*(c(batch.next_obs, next_action) for c in self.critic_targets))
             return (cfg.reward_scale * batch.reward
                     + cfg.discount * (1.0 - batch.terminated) * q_next)
@@ -349,7 +349,7 @@ class TD3:
     def _update_actor(self, obs: torch.Tensor) -> float:
         """Gradient step on ``-Q_1(s, P(pi(s)))`` plus the distance-to-set penalty."""
         raw = self.actor(obs)
-        applied = self.projection(raw)
+        applied = self.projection(raw, obs)
         outside = ((raw - applied) / self.half_range).pow(2).sum(-1).mean()
         critic = self.critics[0]
         critic.requires_grad_(False)  # no gradients for the critic's weights here

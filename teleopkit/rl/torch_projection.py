@@ -2,9 +2,11 @@
 
 The maps are piecewise affine (per-joint polygons) or piecewise rational in the raw action (the
 scheduled classes' coupled set), so autograd gives their exact Jacobians almost everywhere:
-identity inside the set, the tangent projector on an edge, zero at a vertex. The scheduled
-classes' floor on ``kappa`` depends on the run-time state, which is not in the observation: it
-is enforced by the environment, not in this projection (the critic sees the applied action).
+identity inside the set, the tangent projector on an edge, zero at a vertex. Both take the
+observation too: a scheduled class's floor on ``kappa`` follows from the run-time state the
+environment appends to it, so the actor is trained through the very set of each step. (A rate
+bound, which depends on the previous action, is not in the observation: the environment
+enforces it, and the critic sees the applied action.)
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from torch import nn
 
 from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.safety.layer import SafetyLayer
+from teleopkit.safety.schedule import TANK
 
 __all__ = ["ScheduledTorchProjection", "TorchProjection", "torch_projection"]
 
@@ -34,7 +37,8 @@ def torch_projection(certified: GainPolytope | SafetyLayer) -> nn.Module:
     """
     if isinstance(certified, SafetyLayer):
         if certified.stateful:
-            return ScheduledTorchProjection(*certified.step_set)  # type: ignore[attr-defined]
+            layer = certified
+            return ScheduledTorchProjection(*layer.step_set, mode=layer.mode)  # type: ignore
         return TorchProjection(certified.polytope)
     return TorchProjection(certified)
 
@@ -72,13 +76,15 @@ class TorchProjection(nn.Module):
                                         (vertices, edges, length2, g.T, polytope.h, owner))
                            for dtype in (torch.float32, torch.float64)}
 
-    def forward(self, action: torch.Tensor) -> torch.Tensor:
+    def forward(self, action: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
         """Project actions onto the certified polytope.
 
         Parameters
         ----------
         action : torch.Tensor, shape (B, 2 n)
             Raw gains (float32 or float64).
+        obs : torch.Tensor, optional
+            Unused: the polytope is the same at every step.
 
         Returns
         -------
@@ -111,24 +117,57 @@ class ScheduledTorchProjection(nn.Module):
         The common shape, the cone ``B_r^i >= rho_i s_i kappa + beta_i`` and the damping box.
     kappa_lo, kappa_hi : float
         The interval of ``kappa``.
+    mode : int, optional
+        :data:`~teleopkit.safety.schedule.BUDGET` or :data:`~teleopkit.safety.schedule.TANK`:
+        how the observation's last columns (level, previous ``kappa``, remote energy) give the
+        step's floor; ``None`` for the static set alone.
     """
 
     def __init__(self, shape: np.ndarray, rho: np.ndarray, beta: np.ndarray, b_lo: np.ndarray,
-                 b_hi: np.ndarray, kappa_lo: float, kappa_hi: float) -> None:
+                 b_hi: np.ndarray, kappa_lo: float, kappa_hi: float,
+                 mode: int | None = None) -> None:
         super().__init__()
         self.n = len(shape)
         self.kappa_lo, self.kappa_hi = float(kappa_lo), float(kappa_hi)
+        self.mode = mode
         self._constants = {dtype: tuple(torch.as_tensor(np.asarray(x, dtype=float), dtype=dtype)
                                         for x in (shape, rho, beta, b_lo, b_hi))
                            for dtype in (torch.float32, torch.float64)}
 
-    def forward(self, action: torch.Tensor) -> torch.Tensor:
-        """Project actions onto the set.
+    def floor(self, obs: torch.Tensor | None) -> torch.Tensor | float:
+        """The step's floor on ``kappa`` from the observation's run-time columns.
+
+        Parameters
+        ----------
+        obs : torch.Tensor, shape (B, obs_dim), optional
+            Observations ending with the level, the previous ``kappa`` and, with a tank, the
+            remote energy (:meth:`~teleopkit.safety.schedule.ScheduleLayer.run_time_state`).
+
+        Returns
+        -------
+        torch.Tensor, shape (B, 1), or float
+            The floor (``kappa_lo`` without an observation or a mode).
+        """
+        if obs is None or self.mode is None:
+            return self.kappa_lo
+        tank = self.mode == TANK
+        level, previous = obs[:, -3 if tank else -2], obs[:, -2 if tank else -1]
+        if tank:
+            energy = obs[:, -1]
+            floor = previous * energy / (energy + previous * level).clamp(min=1e-300)
+        else:
+            floor = previous * torch.exp(-level)
+        return torch.minimum(floor.clamp(min=self.kappa_lo), previous)[:, None]
+
+    def forward(self, action: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
+        """Project actions onto the set of their step.
 
         Parameters
         ----------
         action : torch.Tensor, shape (B, 2 n)
             Raw gains (float32 or float64).
+        obs : torch.Tensor, shape (B, obs_dim), optional
+            The observations the actions answer (for the floor); the static set without.
 
         Returns
         -------
@@ -150,7 +189,8 @@ class ScheduledTorchProjection(nn.Module):
         starts = torch.cat([torch.full_like(zero, -torch.inf), kinks], 1)
         first = (roots <= ends).to(torch.int8).argmax(1, keepdim=True)
         kappa = torch.maximum(roots.gather(1, first), starts.gather(1, first))
-        kappa = kappa.clamp(self.kappa_lo, self.kappa_hi)
+        floor = torch.as_tensor(self.floor(obs), dtype=action.dtype)
+        kappa = torch.clamp(torch.maximum(kappa, floor), max=self.kappa_hi)
         cone = slope * kappa + beta
         damping = torch.minimum(torch.maximum(b_raw, torch.maximum(b_lo, cone)), b_hi)
         return torch.cat([kappa * shape, damping], dim=1)

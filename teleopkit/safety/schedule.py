@@ -221,6 +221,11 @@ class ScheduleLayer(SafetyLayer):
         self.reset()
 
     @property
+    def mode(self) -> int:
+        """:data:`BUDGET` or :data:`TANK`."""
+        return self._mode
+
+    @property
     def step_set(self) -> tuple[Any, ...]:
         """The static set: ``(shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi)``.
 
@@ -273,7 +278,7 @@ class ScheduleLayer(SafetyLayer):
         self._dissipated = integral
 
     def run_time_state(self, batch: int) -> np.ndarray:
-        """The budget left or the tank level of each scenario, shape ``(B, 1)``.
+        """What the step's set depends on, beside the plant: the agent observes it.
 
         Parameters
         ----------
@@ -282,11 +287,21 @@ class ScheduleLayer(SafetyLayer):
 
         Returns
         -------
-        ndarray, shape (B, 1)
-            The level (the initial one before the first step).
+        ndarray, shape (B, 2) or (B, 3)
+            The budget left or the tank level, the previous ``kappa`` (``kappa_min`` before the
+            first step: then no floor applies) and, with a tank, the measured remote energy
+            ``E_r``: the step's floor follows from them (:attr:`mode`).
         """
-        level = self._level if self._level.shape == (batch,) else np.full(batch, self._initial)
-        return level[:, None].copy()
+        started = self._prev is not None and self._prev.shape[0] == batch
+        level = self._level if started else np.full(batch, self._initial)
+        kappa = self._set[5] * np.ones(batch)
+        if started:
+            kappa = np.where(np.isfinite(self._prev[:, 0]), self._prev[:, 0] / self._set[0][0],
+                             kappa)
+        columns = [level, kappa]
+        if self._mode == TANK:
+            columns.append(self._energy if self._energy.shape == (batch,) else np.zeros(batch))
+        return np.column_stack(columns)
 
     def contains(self, actions: np.ndarray) -> np.ndarray:
         """Whether actions lie in the class: the static set, with the budget or tank not overdrawn.
