@@ -14,7 +14,12 @@ Generic, robot-free mathematics of ``E x' = A0 x + sum_i A_i x(t - tau_i(t))``:
 from certify.bisection import certify_delay, max_delay, max_delay_certificate
 from certify.certificate import Certificate
 from certify.methods import METHODS
-from certify.spectrum import exact_constant_margin, rightmost_roots, spectral_abscissa
+from certify.spectrum import (
+    exact_constant_margin,
+    rightmost_roots,
+    spectral_abscissa,
+    stability_intervals,
+)
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
 from certify.uncertainty import AffineUncertainty, Direction
 
@@ -31,4 +36,5 @@ __all__ = [
     "max_delay_certificate",
     "rightmost_roots",
     "spectral_abscissa",
+    "stability_intervals",
 ]

@@ -15,6 +15,7 @@ checked with the collocation spectrum.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -25,7 +26,7 @@ from numpy.typing import NDArray
 
 from certify.system import LinearDelaySystem
 
-__all__ = ["exact_constant_margin", "rightmost_roots", "spectral_abscissa"]
+__all__ = ["exact_constant_margin", "rightmost_roots", "spectral_abscissa", "stability_intervals"]
 
 Complex = NDArray[np.complex128]
 
@@ -241,8 +242,14 @@ def spectral_abscissa(
     return float(np.max(roots.real)) if roots.size else -math.inf
 
 
-def _crossing_delays(system: LinearDelaySystem) -> list[float]:
-    """Common delays at which a root lies on the imaginary axis (``w > 0``), smallest first."""
+def _crossing_frequencies(system: LinearDelaySystem) -> list[tuple[float, float]]:
+    """Pairs ``(theta, w)``: a root ``j w`` (``w > 0``) at each delay ``(theta + 2 pi k) / w``.
+
+    The classical test for commensurate delays (Chen, Gu & Nett 1995): ``j w`` is a root for the
+    delay ``tau`` iff ``z = exp(-j w tau)`` on the unit circle makes ``A_0 + z S`` (``S`` the sum
+    of the delay matrices) have the eigenvalue ``j w``, and those ``z`` are the unit-modulus
+    eigenvalues of a quadratic pencil in Kronecker form.
+    """
     a0, mats = system.explicit()
     s = sum(mats)
     n = system.n
@@ -254,14 +261,33 @@ def _crossing_delays(system: LinearDelaySystem) -> list[float]:
     alpha, beta = scipy.linalg.eig(lhs, rhs, right=False, homogeneous_eigvals=True)
     finite = np.abs(beta) > 1e-12 * np.abs(alpha)
     z = alpha[finite] / beta[finite]
-    taus: list[float] = []
+    pairs: list[tuple[float, float]] = []
     scale = _scale(system)
     for zk in z[np.abs(np.abs(z) - 1.0) < _UNIT_TOL]:
         zk = zk / abs(zk)
         for lam in np.linalg.eigvals(a0 + zk * s):
             if abs(lam.real) < _AXIS_TOL * scale and lam.imag > _AXIS_TOL * scale:
-                taus.append(float(np.mod(-np.angle(zk), 2.0 * np.pi) / lam.imag))
-    return sorted(taus)
+                pairs.append((float(np.mod(-np.angle(zk), 2.0 * np.pi)), float(lam.imag)))
+    return pairs
+
+
+def _crossing_delays(system: LinearDelaySystem, lower: float = 0.0,
+                     upper: float = math.inf) -> list[float]:
+    """Common delays in ``[lower, upper]`` with a root on the imaginary axis, sorted.
+
+    With ``upper = inf`` only the first crossing at or above ``lower`` of each frequency.
+    """
+    taus: list[float] = []
+    for theta, w in _crossing_frequencies(system):
+        first = max(0, math.ceil((lower * w - theta) / (2.0 * math.pi) - 1e-12))
+        k = first
+        while True:
+            tau = (theta + 2.0 * math.pi * k) / w
+            if tau > upper or (math.isinf(upper) and k > first):
+                break
+            taus.append(tau)
+            k += 1
+    return sorted(t for t in taus if t >= lower)
 
 
 def _first_unstable(system: LinearDelaySystem, taus: Sequence[float], zero: bool) -> float | None:
@@ -282,34 +308,85 @@ def _bisect_onset(system: LinearDelaySystem, lo: float, hi: float, zero: bool) -
     return lo
 
 
-def exact_constant_margin(system: LinearDelaySystem, *, exclude_zero: bool = False) -> float:
-    """Largest ``h`` with stability for every common constant delay ``tau_i = tau`` in ``[0, h]``.
+def _check_lower(lower: float) -> float:
+    value = float(lower)
+    if not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"lower must be a finite delay >= 0, got {lower!r}")
+    return value
+
+
+def exact_constant_margin(system: LinearDelaySystem, lower: float = 0.0, *,
+                          exclude_zero: bool = False) -> float:
+    """Largest ``h`` with stability for every common constant delay in ``[lower, h]``.
 
     Parameters
     ----------
     system : LinearDelaySystem
         The system.
+    lower : float, optional
+        Smallest delay (a minimum latency): a system may be stable only on an interval of
+        delays that does not contain 0 (:func:`stability_intervals`).
     exclude_zero : bool, optional
         Ignore a structural root at the origin (present for every delay).
 
     Returns
     -------
     float
-        The delay margin: ``0.0`` if unstable at zero delay, ``math.inf`` if stable for all
-        common constant delays, otherwise the smallest delay with a root on the imaginary axis.
+        ``0.0`` if unstable at ``lower``, ``math.inf`` if stable for every common constant delay
+        above it, otherwise the smallest delay above ``lower`` with a root on the imaginary axis.
     """
     system = _check_system(system)
-    if spectral_abscissa(system, 0.0, exclude_zero=exclude_zero) >= 0.0:
+    lower = _check_lower(lower)
+    if spectral_abscissa(system, lower, exclude_zero=exclude_zero) >= 0.0:
         return 0.0
-    crossings = _crossing_delays(system)
+    crossings = [t for t in _crossing_delays(system, lower) if t > lower]
     if crossings:
         margin = crossings[0]
-        grid = [f * margin for f in _VERIFY_FRACTIONS]
+        grid = [lower + f * (margin - lower) for f in _VERIFY_FRACTIONS]
     else:
         margin = math.inf
-        grid = [2.0**p / _scale(system) for p in range(-2, 4)]
+        grid = [lower + 2.0**p / _scale(system) for p in range(-2, 4)]
     unstable = _first_unstable(system, grid, exclude_zero)
     if unstable is None:
         return margin
-    previous = max([t for t in grid if t < unstable], default=0.0)
+    previous = max([t for t in grid if t < unstable], default=lower)
     return _bisect_onset(system, previous, unstable, exclude_zero)
+
+
+def stability_intervals(system: LinearDelaySystem, h_max: float, *,
+                        exclude_zero: bool = False) -> list[tuple[float, float]]:
+    """The common constant delays in ``[0, h_max]`` for which the system is stable.
+
+    Between two consecutive delays with a root on the imaginary axis the number of roots in
+    the right half-plane is constant, so each such segment is stable or unstable as a whole;
+    the midpoint of each is checked with the collocation spectrum.
+
+    Parameters
+    ----------
+    system : LinearDelaySystem
+        The system.
+    h_max : float
+        Largest delay considered.
+    exclude_zero : bool, optional
+        Ignore a structural root at the origin.
+
+    Returns
+    -------
+    list of (float, float)
+        Disjoint intervals ``(a, b)``, increasing; the system is exponentially stable for every
+        common constant delay strictly inside each (and at ``a = 0`` when it is stable without
+        delay). ``b = h_max`` when the last interval reaches it.
+    """
+    system = _check_system(system)
+    if not (math.isfinite(h_max) and h_max > 0):
+        raise ValueError(f"h_max must be finite and positive, got {h_max!r}")
+    cuts = sorted({0.0, *(t for t in _crossing_delays(system, 0.0, h_max) if t < h_max), h_max})
+    stable = [spectral_abscissa(system, 0.5 * (a + b), exclude_zero=exclude_zero) < 0.0
+              for a, b in itertools.pairwise(cuts)]
+    intervals: list[tuple[float, float]] = []
+    for (a, b), good in zip(itertools.pairwise(cuts), stable, strict=True):
+        if good and intervals and intervals[-1][1] == a:
+            intervals[-1] = (intervals[-1][0], b)  # a tangential touch of the axis
+        elif good:
+            intervals.append((a, b))
+    return intervals

@@ -11,6 +11,7 @@ from certify import (
     exact_constant_margin,
     rightmost_roots,
     spectral_abscissa,
+    stability_intervals,
 )
 
 BENCHMARK_EXACT = 6.172581371  # arccos(-0.9) / sqrt(0.19)
@@ -99,3 +100,51 @@ def test_spectral_input_errors(benchmark_system):
         rightmost_roots(benchmark_system, [1.0, 2.0])
     with pytest.raises(ValueError, match="single LinearDelaySystem"):
         exact_constant_margin(PolytopicDelaySystem((benchmark_system,)))
+
+
+# Gu, Kharitonov & Chen (2003), p. 193: x'' - 0.1 x' + 2 x = x(t - tau), stable only for
+# tau in (0.100174, 1.71785) (unstable without delay).
+DELAY_STABILISED = LinearDelaySystem(np.array([[0.0, 1.0], [-2.0, 0.1]]),
+                                     [np.array([[0.0, 0.0], [1.0, 0.0]])])
+
+
+def _analytic_crossings() -> list[float]:
+    """First crossing delay of each frequency: |2 - w^2 - 0.1 j w| = 1, phase gives tau."""
+    taus = []
+    for w2 in np.roots([1.0, -3.99, 3.0]):
+        w = math.sqrt(w2)
+        taus.append(float(np.mod(-np.angle(2.0 - w2 - 0.1j * w), 2 * math.pi) / w))
+    return sorted(taus)
+
+
+def test_stability_interval_not_containing_zero():
+    (low, high), = stability_intervals(DELAY_STABILISED, 5.0)
+    np.testing.assert_allclose([low, high], _analytic_crossings(), rtol=1e-9)
+    assert low == pytest.approx(0.100174, abs=1e-5)
+    assert high == pytest.approx(1.71785, abs=1e-5)
+    assert spectral_abscissa(DELAY_STABILISED, 0.0) > 0
+    assert spectral_abscissa(DELAY_STABILISED, 1.0) < 0
+
+
+def test_margin_from_a_minimum_delay():
+    low, high = _analytic_crossings()
+    assert exact_constant_margin(DELAY_STABILISED) == 0.0
+    assert exact_constant_margin(DELAY_STABILISED, 0.9 * low) == 0.0
+    assert exact_constant_margin(DELAY_STABILISED, 0.5) == pytest.approx(high, rel=1e-9)
+    assert exact_constant_margin(DELAY_STABILISED, 1.1 * high) == 0.0
+
+
+def test_intervals_of_a_system_stable_without_delay(benchmark_system):
+    intervals = stability_intervals(benchmark_system, 10.0)
+    assert intervals == [(0.0, pytest.approx(BENCHMARK_EXACT, abs=1e-6))]
+    assert stability_intervals(LinearDelaySystem(-2.0, [1.0]), 3.0) == [(0.0, 3.0)]
+    assert stability_intervals(LinearDelaySystem(1.0, [-0.5]), 3.0) == []
+
+
+def test_margin_from_lower_on_a_stable_system(benchmark_system):
+    assert exact_constant_margin(benchmark_system, 2.0) == pytest.approx(BENCHMARK_EXACT, abs=1e-6)
+    assert exact_constant_margin(benchmark_system, 7.0) == 0.0
+    with pytest.raises(ValueError, match="lower must be a finite delay >= 0"):
+        exact_constant_margin(benchmark_system, -1.0)
+    with pytest.raises(ValueError, match="h_max must be finite and positive"):
+        stability_intervals(benchmark_system, 0.0)
