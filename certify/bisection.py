@@ -9,7 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from certify.certificate import Certificate
-from certify.conditions import check_mu
+from certify.channels import MODES, Channels
+from certify.conditions import check_mu, lower_bounds
 from certify.methods import AUTO_METHODS, get_method
 from certify.solve import LMIProblem
 from certify.system import LinearDelaySystem, PolytopicDelaySystem, as_polytope
@@ -24,6 +25,23 @@ def _method_names(method: str) -> tuple[str, ...]:
         return AUTO_METHODS
     get_method(method)
     return (method,)
+
+
+def _problems(system: PolytopicDelaySystem, method: str, mu: float | None,
+              lower: tuple[float, ...], channels: str) -> list[LMIProblem]:
+    """The problems to try: each method, in each channel form (``"auto"``: both if they differ).
+
+    The reduced form comes first: it is smaller, and where it certifies, the full form is only
+    tried by a bisection that may find a larger bound.
+    """
+    if channels == "auto":
+        modes = MODES if Channels.of(system).reduced else MODES[:1]
+    elif channels in MODES:
+        modes = (channels,)
+    else:
+        raise ValueError(f"channels must be auto, {', '.join(MODES)}; got {channels!r}")
+    return [LMIProblem(system, get_method(name), mu, lower, mode)
+            for name in _method_names(method) for mode in modes]
 
 
 def _positive_vector(values: float | Sequence[float], m: int, what: str) -> np.ndarray:
@@ -42,8 +60,11 @@ def certify_delay(
     h: float | Sequence[float],
     method: str = "auto",
     mu: float | None = None,
+    *,
+    lower: float | Sequence[float] = 0.0,
+    channels: str = "auto",
 ) -> Certificate:
-    """Certify stability for given delay upper bounds.
+    """Certify stability for given delay bounds, ``lower_i <= tau_i(t) <= h_i``.
 
     Parameters
     ----------
@@ -58,6 +79,12 @@ def certify_delay(
     mu : float or None, optional
         ``None``: time-varying delays with unknown derivative; ``0.0``: constant delays;
         ``0 < mu < 1``: ``tau_i'(t) <= mu``.
+    lower : float or sequence of float, optional
+        Lower bound of each delay (a minimum latency; default 0). Each must not exceed ``h``.
+    channels : str, optional
+        ``"auto"`` (default): the functional on the delayed signals ``y_i = C_i x``, then, if
+        that fails and some ``A_i`` is rank-deficient, on the whole state
+        (:mod:`certify.channels`); ``"reduced"`` or ``"full"`` for one form only.
 
     Returns
     -------
@@ -71,14 +98,24 @@ def certify_delay(
     """
     poly = as_polytope(system)
     bounds = _positive_vector(h, poly.m, "h")
+    low = _checked_lower(lower, bounds)
     mu = check_mu(mu)
     cert: Certificate | None = None
-    for name in _method_names(method):
-        cert = LMIProblem(poly, get_method(name), mu).solve(bounds)
+    for problem in _problems(poly, method, mu, low, channels):
+        cert = problem.solve(bounds)
         if cert.certified:
             break
     assert cert is not None
     return cert
+
+
+def _checked_lower(lower: float | Sequence[float], upper: np.ndarray) -> tuple[float, ...]:
+    """Lower bounds, each at most its upper bound."""
+    low = lower_bounds(lower, len(upper))
+    if any(a > b for a, b in zip(low, upper, strict=True)):
+        raise ValueError(f"lower delay bounds {list(low)} exceed the upper bounds "
+                         f"{upper.tolist()}")
+    return low
 
 
 def _initial_guess(system: PolytopicDelaySystem) -> float:
@@ -101,9 +138,17 @@ certified, bisects below the guess."""
 def _bisect(
     problem: LMIProblem, weights: np.ndarray, guess: float, h_max: float, rtol: float
 ) -> Certificate:
-    """Largest scale ``s <= h_max`` such that ``s * weights`` is certified (bisection)."""
+    """Largest scale ``s <= h_max`` such that ``s * weights`` is certified (bisection).
+
+    Scales start at the smallest one whose bounds reach the lower bounds (a certificate for
+    ``[l, h]`` also covers every smaller upper bound, so the certified scales form an interval).
+    """
     best: Certificate | None = None
-    lo, hi = 0.0, min(guess, h_max)
+    floor = max(low / w for low, w in zip(problem.lower, weights, strict=True))
+    if floor >= h_max:
+        raise ValueError(f"the lower delay bounds {list(problem.lower)} reach h_max = {h_max}")
+    guess = max(guess, 2.0 * floor)
+    lo, hi = floor, min(guess, h_max)
     cert = problem.solve(hi * weights)
     for _ in range(SCAN_TRIES - 1):  # a tiny bound can fail numerically: look further up
         if cert.certified or hi >= h_max:
@@ -112,6 +157,7 @@ def _bisect(
         cert = problem.solve(hi * weights)
     if not cert.certified:  # nothing above the guess: bisect below it
         hi = min(guess, h_max)
+        cert = problem.solve(hi * weights) if floor else cert
     while cert.certified:  # expand until a failure or h_max
         lo, best = hi, cert
         if hi >= h_max:
@@ -119,7 +165,7 @@ def _bisect(
         hi = min(2.0 * hi, h_max)
         cert = problem.solve(hi * weights)
     first_failure = cert
-    while hi - lo > rtol * hi and hi > 1e-9 * guess:
+    while hi - lo > rtol * hi and hi - floor > 1e-9 * guess:
         mid = 0.5 * (lo + hi)
         cert = problem.solve(mid * weights)
         if cert.certified:
@@ -139,6 +185,8 @@ def max_delay_certificate(
     weights: float | Sequence[float] = 1.0,
     h_max: float = 1e3,
     rtol: float = 1e-3,
+    lower: float | Sequence[float] = 0.0,
+    channels: str = "auto",
 ) -> Certificate:
     """Largest certified delay bound by bisection, with its certificate.
 
@@ -158,23 +206,28 @@ def max_delay_certificate(
         Largest scale tried; returned if it is certified.
     rtol : float, optional
         Relative width at which the bisection stops.
+    lower : float or sequence of float, optional
+        Lower bound of each delay (default 0): the certificate is for
+        ``lower_i <= tau_i(t) <= s * weights[i]``.
+    channels : str, optional
+        ``"auto"`` (default: both channel forms where they differ, the larger bound kept),
+        ``"reduced"`` or ``"full"`` (:mod:`certify.channels`).
 
     Returns
     -------
     Certificate
         Certificate at the largest certified scale, which is stored in ``margin``
-        (``0.0`` with ``certified=False`` if no positive bound was certified).
+        (``0.0`` with ``certified=False`` if no bound above the lower ones was certified).
     """
     poly = as_polytope(system)
     w = _positive_vector(weights, poly.m, "weights")
     mu = check_mu(mu)
     if not (h_max > 0 and math.isfinite(h_max)) or not 0 < rtol < 1:
         raise ValueError(f"need 0 < h_max < inf and 0 < rtol < 1, got {h_max}, {rtol}")
+    low = lower_bounds(lower, poly.m)
     guess = _initial_guess(poly)
-    results = [
-        _bisect(LMIProblem(poly, get_method(name), mu), w, guess, h_max, rtol)
-        for name in _method_names(method)
-    ]
+    results = [_bisect(problem, w, guess, h_max, rtol)
+               for problem in _problems(poly, method, mu, low, channels)]
     return max(results, key=lambda c: c.margin or 0.0)
 
 
@@ -186,8 +239,10 @@ def max_delay(
     weights: float | Sequence[float] = 1.0,
     h_max: float = 1e3,
     rtol: float = 1e-3,
+    lower: float | Sequence[float] = 0.0,
+    channels: str = "auto",
 ) -> float:
-    """Largest common delay bound ``h`` certified for every delay (``0 <= tau_i(t) <= h``).
+    """Largest common delay bound ``h`` certified for every delay (``lower <= tau_i(t) <= h``).
 
     Parameters
     ----------
@@ -206,11 +261,16 @@ def max_delay(
     rtol : float, optional
         Relative bisection tolerance; the result is certified and within about ``rtol``
         of the method's limit.
+    lower : float or sequence of float, optional
+        Lower bound of each delay (a minimum latency; default 0).
+    channels : str, optional
+        Channel forms tried (:func:`max_delay_certificate`).
 
     Returns
     -------
     float
         The certified bound (``0.0`` if none).
     """
-    cert = max_delay_certificate(system, method, mu, weights=weights, h_max=h_max, rtol=rtol)
+    cert = max_delay_certificate(system, method, mu, weights=weights, h_max=h_max, rtol=rtol,
+                                 lower=lower, channels=channels)
     return float(cert.margin or 0.0)

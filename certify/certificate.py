@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from certify.channels import Channels
 from certify.check import RTOL, residuals, variables_valid
+from certify.conditions import lower_bounds
 from certify.methods import get_method
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
 from certify.uncertainty import AffineUncertainty
@@ -52,6 +53,8 @@ class Certificate:
     scaling : tuple of float
         State scales ``d`` of the coordinates ``x = diag(d) z`` that ``matrices`` and
         ``channels`` refer to (:meth:`PolytopicDelaySystem.scaled`); empty means ``d = 1``.
+    delay_lower : tuple of float
+        Lower bound ``l_i`` of each delay (``l_i <= tau_i(t) <= h_i``); empty means 0.
     """
 
     certified: bool
@@ -67,6 +70,7 @@ class Certificate:
     residuals: Mapping[str, float] = field(default_factory=dict)
     margin: float | None = None
     scaling: tuple[float, ...] = ()
+    delay_lower: tuple[float, ...] = ()
 
     def verify(self, rtol: float = RTOL) -> bool:
         """Re-check every LMI in numpy from the stored matrices and system.
@@ -83,8 +87,13 @@ class Certificate:
         """
         if not self.certified:
             return False
-        method = get_method(self.method)
         try:
+            method = get_method(self.method)
+            if self.delay_lower:
+                lower = lower_bounds(self.delay_lower, len(self.delay_bounds))
+                if any(h < low for h, low in zip(self.delay_bounds, lower, strict=True)):
+                    return False
+                method = method.with_lower(lower)
             system = self.system.scaled(self.scaling) if self.scaling else self.system
         except ValueError:
             return False
@@ -123,6 +132,7 @@ class Certificate:
             "residuals": dict(self.residuals),
             "margin": self.margin,
             "scaling": list(self.scaling),
+            "delay_lower": list(self.delay_lower),
         }
 
     def to_json(self, indent: int | None = None) -> str:
@@ -175,6 +185,7 @@ class Certificate:
             residuals={k: float(v) for k, v in data["residuals"].items()},
             margin=None if data["margin"] is None else float(data["margin"]),
             scaling=tuple(float(x) for x in data.get("scaling", ())),
+            delay_lower=tuple(float(x) for x in data.get("delay_lower", ())),
         )
 
     @classmethod

@@ -16,6 +16,7 @@ then differ per delay vertex (multi-affine interpolation keeps the argument exac
 
 from __future__ import annotations
 
+import copy
 import itertools
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
@@ -37,10 +38,11 @@ __all__ = [
     "check_mu",
     "delay_class_text",
     "dynamics_scale",
+    "lower_bounds",
 ]
 
 DelayPoint = tuple[bool, ...]
-"""Which delays sit at their upper bound (``True``) or at zero (``False``)."""
+"""Which delays sit at their upper bound (``True``) or at their lower bound (``False``)."""
 
 
 @dataclass(frozen=True)
@@ -89,24 +91,64 @@ def check_mu(mu: float | None) -> float | None:
     return value
 
 
-def delay_class_text(mu: float | None) -> str:
+def lower_bounds(lower: float | Sequence[float], m: int) -> tuple[float, ...]:
+    """Validate lower delay bounds.
+
+    Parameters
+    ----------
+    lower : float or sequence of float
+        One bound per delay, or one for all.
+    m : int
+        Number of delays.
+
+    Returns
+    -------
+    tuple of float
+        ``m`` bounds.
+
+    Raises
+    ------
+    ValueError
+        On a wrong count, or a bound that is negative or not finite.
+    """
+    values = np.array(lower, dtype=np.float64).reshape(-1)
+    if values.size == 1:
+        values = np.full(m, values[0])
+    if values.size != m:
+        raise ValueError(f"lower needs {m} entries (one per delay), got {values.size}")
+    if not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError(f"lower delay bounds must be finite and >= 0, got {values.tolist()}")
+    return tuple(float(x) for x in values)
+
+
+def delay_class_text(mu: float | None, lower: Sequence[float] = ()) -> str:
     """Describe the delay class in words (for certificate assumptions).
 
     Parameters
     ----------
     mu : float or None
         Delay-derivative bound as in :func:`check_mu`.
+    lower : sequence of float, optional
+        Lower delay bounds (empty or zero: from 0).
 
     Returns
     -------
     str
         One-line description.
     """
+    low = "l_i" if any(lower) else "0"
+    interval = f"[{low}, h_i]"
     if mu is None:
-        return "delays: each tau_i(t) in [0, h_i], time-varying with unknown derivative"
-    if mu == 0.0:
-        return "delays: each tau_i constant in [0, h_i] (time-invariant, mutually independent)"
-    return f"delays: each tau_i(t) in [0, h_i], differentiable with tau_i'(t) <= mu = {mu:g}"
+        text = f"delays: each tau_i(t) in {interval}, time-varying with unknown derivative"
+    elif mu == 0.0:
+        text = (f"delays: each tau_i constant in {interval} (time-invariant, mutually "
+                "independent)")
+    else:
+        text = (f"delays: each tau_i(t) in {interval}, differentiable with tau_i'(t) <= "
+                f"mu = {mu:g}")
+    if any(lower):
+        text += "; l = " + ", ".join(f"{x:g}" for x in lower)
+    return text
 
 
 class LMIMethod(ABC):
@@ -120,6 +162,43 @@ class LMIMethod(ABC):
     """
 
     name: str = ""
+    lower: tuple[float, ...] = ()
+    """Lower delay bounds ``l_i`` (empty: every delay from 0)."""
+
+    def lower_bound(self, i: int) -> float:
+        """Lower bound ``l_i`` of delay ``i`` (0 unless set by :meth:`with_lower`).
+
+        Parameters
+        ----------
+        i : int
+            Delay index.
+
+        Returns
+        -------
+        float
+            The bound.
+        """
+        return self.lower[i] if self.lower else 0.0
+
+    def with_lower(self, lower: Sequence[float]) -> LMIMethod:
+        """The same method for delays ``l_i <= tau_i(t) <= h_i``.
+
+        Parameters
+        ----------
+        lower : sequence of float
+            One lower bound per delay (all zero gives the method itself).
+
+        Returns
+        -------
+        LMIMethod
+            A copy holding the bounds.
+        """
+        bounds = tuple(float(x) for x in lower)
+        if not any(bounds):
+            return self
+        method = copy.copy(self)
+        method.lower = bounds
+        return method
 
     @abstractmethod
     def blocks(self, ch: Channels, mu: float | None) -> dict[str, int]:

@@ -75,6 +75,8 @@ class ScaledSmallGain(LMIMethod):
 
     def assumptions(self, mu: float | None) -> list[str]:  # noqa: D102
         note = "" if mu is None else "; the derivative bound mu is not used"
+        if any(self.lower):
+            note += "; the lower delay bounds are not used (it covers every tau_i in [0, h_i])"
         return [
             "scaled small gain: ||int_{t-tau_i}^t v|| <= h_i ||v|| in L2 for any delay "
             f"variation, full scaling per channel{note}"

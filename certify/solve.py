@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from certify.certificate import Certificate
 from certify.channels import Channels
 from certify.check import RTOL, residuals
-from certify.conditions import LMIMethod, check_mu, delay_class_text
+from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_bounds
 from certify.system import PolytopicDelaySystem
 
 __all__ = ["LMIProblem"]
@@ -57,10 +57,10 @@ class _Form:
     """The cvxpy problem of one method in the coordinates ``x = diag(scaling) z``."""
 
     def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
-                 scaling: NDArray[np.float64]) -> None:
+                 scaling: NDArray[np.float64], channels: str) -> None:
         self.method, self.mu, self.scaling = method, mu, scaling
         self.system = system.scaled(scaling)
-        self.channels = Channels.of(self.system)
+        self.channels = Channels.of(self.system, channels)
         self.vars = {
             s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
             for s in method.variables(self.channels, mu, self.system)
@@ -119,18 +119,29 @@ class LMIProblem:
         The LMI method.
     mu : float or None
         Delay-derivative bound (``None`` fast-varying, ``0.0`` constant delays).
+    lower : float or sequence of float, optional
+        Lower delay bounds ``l_i`` (a minimum latency): the problem certifies
+        ``l_i <= tau_i(t) <= h_i``. Default 0.
+    channels : str, optional
+        ``"reduced"`` (default): the functional acts on the delayed signals ``y_i = C_i x``
+        (:mod:`certify.channels`); ``"full"``: on the whole state.
     """
 
-    def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None) -> None:
+    def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
+                 lower: float | Sequence[float] = 0.0, channels: str = "reduced") -> None:
         self.system = system
-        self.method = method
+        self.lower = lower_bounds(lower, system.m)
+        self.method = method.with_lower(self.lower)
         self.mu = check_mu(mu)
-        self._forms = [_Form(system, method, self.mu, np.ones(system.n))]
+        self.channels = channels
+        self._forms = [_Form(system, self.method, self.mu, np.ones(system.n), channels)]
         self.assumptions = (
-            delay_class_text(self.mu),
+            delay_class_text(self.mu, self.lower),
             _system_text(system),
-            *method.assumptions(self.mu),
-            "delay channel i acts through y_i = C_i x (row space of A_i over all vertices)",
+            *self.method.assumptions(self.mu),
+            ("functional on the whole state" if channels == "full" else
+             "delay channel i acts through y_i = C_i x (row space of A_i over all vertices); "
+             "the functional acts on y_i"),
             f"numerics: every LMI re-checked in numpy with relative eigenvalue margin >= {RTOL:g}",
         )
 
@@ -145,7 +156,7 @@ class LMIProblem:
             scaling = self.system.balancing()
             if np.all(scaling == 1.0):
                 return None
-            self._forms.append(_Form(self.system, self.method, self.mu, scaling))
+            self._forms.append(_Form(self.system, self.method, self.mu, scaling, self.channels))
         return self._forms[1]
 
     def solve(self, h: Sequence[float] | NDArray[np.float64]) -> Certificate:
@@ -164,6 +175,10 @@ class LMIProblem:
             coordinates or else in balanced ones (``scaling``).
         """
         bounds = tuple(float(x) for x in h)
+        if len(bounds) != self.system.m or any(b < low for b, low in zip(bounds, self.lower,
+                                                                           strict=True)):
+            raise ValueError(f"delay bounds {list(bounds)} must be {self.system.m} values, each "
+                             f"at least its lower bound {list(self.lower)}")
         form = self._forms[0]
         status, matrices, res = form.solve(bounds)
         certified = bool(res) and all(r >= RTOL for r in res.values())
@@ -177,6 +192,7 @@ class LMIProblem:
             certified=certified,
             method=self.method.name,
             delay_bounds=bounds,
+            delay_lower=self.lower if any(self.lower) else (),
             mu=self.mu,
             assumptions=self.assumptions + (
                 ("numerics: states scaled by powers of two, x = diag(scaling) z; matrices and "
