@@ -1,9 +1,9 @@
 """The paper's networks: an actor with a softplus output over the action box, and a critic.
 
-The actor maps observations to raw gains ``low + (high - low) softplus(z) / (2 ln 2)`` (``z = 0``
-is the centre of the action box); the critic has a state path and an action path merged into a
-scalar. Both standardise their inputs with fixed statistics, and every weight is drawn from a
-generator the caller owns (the global RNG is never touched).
+The actor maps observations to raw gains ``low + (start - low) softplus(z) / ln 2`` (``z = 0``
+gives ``start``, by default the centre of the action box); the critic has a state path and an
+action path merged into a scalar. Both standardise their inputs with fixed statistics, and every
+weight is drawn from a generator the caller owns (the global RNG is never touched).
 """
 
 from __future__ import annotations
@@ -92,26 +92,34 @@ class Actor(nn.Module):
         Source of the initial weights.
     hidden : tuple of int
         Hidden widths.
+    start : ndarray, shape (act_dim,), optional
+        The gains at ``z = 0``, where the untrained actor starts (strictly above ``low``;
+        default the centre of the box): the map becomes ``low + (start - low) softplus(z) /
+        ln 2``, which still reaches every gain of the box.
     """
 
     low: torch.Tensor
     span: torch.Tensor
 
     def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
-                 generator: torch.Generator, hidden: tuple[int, ...] = (128, 64)) -> None:
+                 generator: torch.Generator, hidden: tuple[int, ...] = (128, 64),
+                 start: np.ndarray | None = None) -> None:
         super().__init__()
         act_dim = len(low)
         self.normalise = Standardise(obs_dim)
         body = _mlp((obs_dim, *hidden), generator)
         self.body = nn.Sequential(*body, nn.ReLU())
-        # A small last layer starts every output near the centre of the box (DDPG's 3e-3).
+        # A small last layer starts every output near ``start`` (DDPG's 3e-3).
         self.head = _linear(hidden[-1], act_dim, generator, bound=3e-3)
+        start = (low + high) / 2 if start is None else np.asarray(start, dtype=float)
+        if start.shape != np.shape(low) or not np.all(start > low):
+            raise ValueError(f"the actor's start {start.tolist()} must lie above the box's "
+                             f"lower corner {np.asarray(low).tolist()}")
         self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))
-        self.register_buffer("span", torch.as_tensor((high - low) / (2 * _LN2),
-                                                     dtype=torch.float32))
+        self.register_buffer("span", torch.as_tensor((start - low) / _LN2, dtype=torch.float32))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        """Raw gains ``low + (high - low) softplus(z) / (2 ln 2)``, shape ``(B, act_dim)``.
+        """Raw gains ``low + span softplus(z)``, shape ``(B, act_dim)``.
 
         Parameters
         ----------

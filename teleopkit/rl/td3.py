@@ -19,10 +19,11 @@ The actor outputs *raw* gains ``a_raw = [K_r..., B_r...]`` in gain units. Its la
 softplus, scaled and offset per coordinate so that its range covers the action box
 ``[low, high]`` (the certificate's gain box)::
 
-    a_raw = low + (high - low) * softplus(z) / (2 ln 2)
+    a_raw = low + (start - low) * softplus(z) / ln 2
 
-so ``z = 0`` gives the centre of the box, ``z -> -inf`` the lower corner, and large ``z`` values
-above the upper corner (every point of the box is reached; the projection takes care of the rest).
+so ``z = 0`` gives ``start`` (the centre of the box unless :attr:`TD3Config.start` says
+otherwise), ``z -> -inf`` the lower corner, and large ``z`` values above the upper corner (every
+point of the box is reached; the projection takes care of the rest).
 The environment projects ``a_raw`` (plus exploration noise) onto the certified polytope and the
 replay buffer stores the *applied* action, so the critics learn ``Q(s, a)`` on certified actions
 only. The actor is trained through the projection: its loss is
@@ -118,6 +119,10 @@ class TD3Config:
         Hidden widths of the actor.
     hidden_state, hidden_action, hidden_merged : tuple of int
         Critic: state path, action path and merged layers (before the scalar output).
+    start : tuple of float, optional
+        Gains the untrained actor outputs (:class:`~teleopkit.rl.networks.Actor`); default the
+        centre of the box. Starting from the best static gains of the certified set makes
+        training a refinement of them (residual-style: Silver et al. 2018).
     """
 
     discount: float = 0.99
@@ -138,6 +143,7 @@ class TD3Config:
     hidden_state: tuple[int, ...] = (128, 64)
     hidden_action: tuple[int, ...] = (64,)
     hidden_merged: tuple[int, ...] = (60, 36)
+    start: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not 0 <= self.discount <= 1:
@@ -219,7 +225,8 @@ class TD3:
         low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
         self.generator = torch.Generator().manual_seed(seed)
         cfg = self.config
-        self.actor = Actor(obs_dim, low, high, self.generator, cfg.hidden_actor)
+        self.actor = Actor(obs_dim, low, high, self.generator, cfg.hidden_actor,
+                           None if cfg.start is None else np.asarray(cfg.start))
         self.critics = nn.ModuleList(Critic(obs_dim, low, high, self.generator, cfg.hidden_state,
                                             cfg.hidden_action, cfg.hidden_merged)
                                      for _ in range(2))

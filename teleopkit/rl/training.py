@@ -217,6 +217,8 @@ class _Run:
         self.explore = np.random.default_rng(explore_seed)
         self.counters = _Counters()
         self.best_actor: dict[str, torch.Tensor] | None = None
+        self.held_uniform: np.ndarray | None = None
+        self.held_noise: np.ndarray | None = None
 
     def fingerprint(self) -> dict[str, Any]:
         """Everything that determines the results (compared on resume)."""
@@ -252,11 +254,46 @@ class _Run:
         self.best_actor = state["best_actor"]
 
     def _actions(self, obs: np.ndarray) -> np.ndarray:
-        """Raw gains: uniform in the box while warming up, else actor plus noise."""
+        """Raw gains: uniform in the box while warming up, else actor plus noise.
+
+        Under a scheduled class the stiffness part of the exploration is drawn once per episode
+        (:meth:`_hold_stiffness`).
+        """
         if self.counters.step < self.config.learning_starts:
-            return self.explore.uniform(self.low, self.high, size=(len(obs), len(self.low)))
+            action = self.explore.uniform(self.low, self.high, size=(len(obs), len(self.low)))
+            return self._hold_stiffness(action, self.held_uniform)
         std = self.config.td3.exploration_std_at(self.counters.vector_steps)
-        return self.agent.act(obs, std, self.explore)
+        noise = self.explore.normal(0.0, std, size=(len(obs), len(self.low)))
+        held = None if self.held_noise is None else self.held_noise * std
+        return self.agent.act(obs) + self._hold_stiffness(noise, held)
+
+    def _hold_stiffness(self, action: np.ndarray, held: np.ndarray | None) -> np.ndarray:
+        """``action`` with its stiffness columns replaced by the episode's draw, if any.
+
+        A scheduled class charges every decrease of ``K_r`` to its budget (or tank) and lets
+        increases pass free, so per-step noise on ``K_r`` would spend the budget within a few
+        steps and then ratchet the floor up to the top of the box: the episode would explore
+        nothing but the stiffest gains. Stiffness offsets held for an episode explore the
+        class's free direction without spending it; the damping gains, free inside the cone,
+        keep per-step noise.
+        """
+        if held is None:
+            return action
+        n = action.shape[1] // 2
+        return np.concatenate([held, action[:, n:]], axis=1)
+
+    def _draw_held(self) -> None:
+        """Draw the episode's stiffness exploration (under a scheduled class only).
+
+        Warm-up: the same fraction of the box on every joint; noise: the same unit normal
+        offset on every joint (scaled by the current standard deviation when used).
+        """
+        if not self.env.safety_layer.stateful:
+            return
+        n = len(self.low) // 2
+        fraction = self.explore.uniform(size=(self.config.num_envs, 1))
+        self.held_uniform = self.low[:n] + fraction * (self.high[:n] - self.low[:n])
+        self.held_noise = np.repeat(self.explore.normal(size=(self.config.num_envs, 1)), n, axis=1)
 
     def _learn(self, losses: list[dict[str, float]]) -> None:
         """Fix the normaliser once, then run the updates of one vector step."""
@@ -276,6 +313,7 @@ class _Run:
         unsafe = self.env.unsafe_actions
         first = counters.rounds == 0
         obs, _ = self.env.reset(seed=self.env_seed if first else None)
+        self._draw_held()
         returns = np.zeros(self.config.num_envs)
         losses: list[dict[str, float]] = []
         done = False
