@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
+from certify import PolytopicDelaySystem, certify_delay, exact_constant_margin, max_delay
 from teleopkit.certification import GainCertificate, certify_gains
 from teleopkit.certification.closed_form import nuno_polytope
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
+    CHANNELS,
     LMI_METHOD,
     gain_set_system,
     lmi_certificate,
@@ -72,9 +73,13 @@ def test_margin_of_an_unstable_corner_is_below_its_exact_margin():
     system = gain_set_system(params, corner, "frozen")
     exact = [exact_constant_margin(vertex) for vertex in system.vertices]
     assert min(exact) < 0.2
-    assert lmi_delay_margin(params, corner).margin <= min(exact)
-    for vertex, bound in zip(system.vertices, exact, strict=True):  # each configuration alone
-        assert max_delay(vertex, LMI_METHOD, rtol=0.05) <= bound
+    # no certificate beyond the exact margin, for the set and for each configuration alone
+    assert not lmi_certificate(params, corner, 1.01 * min(exact), 1.01 * min(exact)).certified
+    for vertex, bound in zip(system.vertices, exact, strict=True):
+        if np.isfinite(bound):
+            beyond = certify_delay(vertex, [1.01 * bound] * 2, LMI_METHOD, channels=CHANNELS)
+            assert not beyond.certified
+    assert lmi_certificate(params, corner, 0.5 * min(exact), 0.5 * min(exact)).certified
 
 
 def test_switching_is_harder_than_frozen_and_rate_is_certified_as_switching(one_joint):
@@ -133,5 +138,6 @@ def test_switching_gains_are_never_certified_beyond_enumerated_vertices(one_join
     polytope = GainPolytope.from_box(NARROW)
     multiplier = lmi_delay_margin(one_joint, polytope, "switching")
     systems = [s for action in polytope.vertices() for s in rest_systems(one_joint, action)]
-    enumerated = max_delay(PolytopicDelaySystem(tuple(systems), "switching"), LMI_METHOD, rtol=0.02)
+    enumerated = max_delay(PolytopicDelaySystem(tuple(systems), "switching"), LMI_METHOD, rtol=0.02,
+                           channels=CHANNELS)
     assert multiplier.margin == pytest.approx(enumerated, rel=0.03)

@@ -32,7 +32,7 @@ def test_a_bound_beyond_the_switching_margin_needs_several_cells(one_joint, tigh
     whole = GainPolytope.from_box(NARROW)
     assert lmi_delay_margin(one_joint, whole, "switching").margin < 1.45
     assert tight_cover.certified and len(tight_cover.cells) > 1
-    assert tight_cover.solves >= len(tight_cover.cells) + len(whole.vertices())
+    assert tight_cover.solves > len(tight_cover.cells)  # the whole set failed first
     assert all(cert.certified and cert.verify() for cert in tight_cover.certificates)
 
 
@@ -47,12 +47,13 @@ def test_the_cells_cover_the_set_and_interior_gains_are_certified(one_joint, tig
 
 def test_a_bound_beyond_a_vertex_margin_fails_at_that_vertex(one_joint):
     cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.7, 1.7)
-    assert not cover.certified and "gain vertex" in cover.reason and cover.solves <= 4
+    # the whole set, two levels of the split (as many failures as corners), then the 4 corners
+    assert not cover.certified and "gain vertex" in cover.reason and cover.solves <= 1 + 2 + 4 + 4
 
 
 def test_a_spent_budget_is_not_certified(one_joint):
-    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45, budget=5)
-    assert not cover.certified and "budget of 5 solves" in cover.reason
+    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45, budget=2)
+    assert not cover.certified and "budget of 2 solves" in cover.reason
 
 
 def test_small_sets_and_switching_gains_are_one_lmi(one_joint):
@@ -84,7 +85,7 @@ def test_the_cover_margin_lies_between_the_switching_margin_and_the_vertex_limit
 def test_a_known_margin_above_the_vertex_limit_is_returned_without_covers(one_joint,
                                                                           narrow_margin):
     known = 1.2 * narrow_margin.limit
-    result = cover_margin(one_joint, GainPolytope.from_box(NARROW), lower=known)
+    result = cover_margin(one_joint, GainPolytope.from_box(NARROW), known=known)
     assert result.margin == known and result.cover is None and result.solves == 0
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from teleopkit.certification.bounds import check_delay_bounds
+from teleopkit.certification.bounds import check_delay_bounds, check_delay_floors
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation, parse_gain_variation
 from teleopkit.certification.closed_form import certify_closed_form
@@ -38,7 +38,8 @@ METHODS = ("nuno", "lmi", "all")
 DEFAULT_BOX = ((1.0, 50.0), (1.0, 150.0))
 """Default ``(K_r, B_r)`` ranges of every joint: the action space of the environments."""
 
-Certifier = Callable[[TeleoperatorParams, GainBox, float, float, GainVariation], GainCertificate]
+Certifier = Callable[[TeleoperatorParams, GainBox, float, float, GainVariation,
+                      tuple[float, float]], GainCertificate]
 
 
 def _lmi() -> Certifier:
@@ -48,8 +49,12 @@ def _lmi() -> Certifier:
 
 
 def _closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                 variation: GainVariation) -> GainCertificate:
-    """The closed-form family: Nuño's condition for frozen gains, its storage for schedules."""
+                 variation: GainVariation, delay_lower: tuple[float, float]) -> GainCertificate:
+    """The closed-form family: Nuño's condition for frozen gains, its storage for schedules.
+
+    Both cover every delay in ``[0, T_i*]``, hence any minimum delay (``delay_lower`` is not
+    needed and the certificate records 0).
+    """
     certify = certify_scheduled if variation.scheduled else certify_closed_form
     return certify(params, box, tl_max, tr_max, variation)
 
@@ -103,8 +108,9 @@ def best_certificate(certificates: list[GainCertificate]) -> GainCertificate:
 
 def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                   tr_max: float = 1.0, method: str = "nuno",
-                  variation: GainVariation | str = "frozen") -> GainCertificate:
-    """Certify a box of remote gains for delays ``0 <= T_l(t) <= T_l*``, ``0 <= T_r(t) <= T_r*``.
+                  variation: GainVariation | str = "frozen", tl_min: float = 0.0,
+                  tr_min: float = 0.0) -> GainCertificate:
+    """Certify a box of remote gains for delays ``T_l_min <= T_l(t) <= T_l*``, likewise ``T_r``.
 
     Parameters
     ----------
@@ -118,7 +124,11 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         Certification method; ``"all"`` runs every method that covers the gain class and
         returns the best certificate (:func:`best_certificate`).
     variation : GainVariation or str
-        Gain class: ``"frozen"``, ``"switching"`` or ``"rate:R"``.
+        Gain class: ``"frozen"``, ``"switching"``, ``"rate:R"``, ``"scheduled:L"`` or
+        ``"tank[:T0]"`` (:mod:`teleopkit.certification.classes`).
+    tl_min, tr_min : float
+        Minimum delays in seconds (a network's latency floor), in ``[0, T_i*)``. The LMIs use
+        them (a larger certified set); the closed form covers delays from 0 whatever they are.
 
     Returns
     -------
@@ -138,7 +148,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
     if box.n_joints != params.n_joints:
         raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
     tl_max, tr_max = check_delay_bounds(tl_max, tr_max)
-    return best_certificate([_METHODS[name]()(params, box, tl_max, tr_max, variation)
+    lower = check_delay_floors(tl_min, tr_min, tl_max, tr_max)
+    return best_certificate([_METHODS[name]()(params, box, tl_max, tr_max, variation, lower)
                              for name in methods_for(method, variation)])
 
 

@@ -50,6 +50,8 @@ class GainCertificate:
         Method-specific data (for the LMI, the solver's certificate as JSON-ready data).
     plant : dict
         The plant certified (:func:`~teleopkit.model.params.plant_record`).
+    delay_lower : tuple of float
+        ``(T_l_min, T_r_min)``: the delays certified lie in ``[T_i_min, T_i*]`` (0: from 0).
     """
 
     certified: bool
@@ -64,6 +66,7 @@ class GainCertificate:
     violation: str | None = None
     details: dict[str, Any] = field(default_factory=dict)
     plant: dict[str, Any] = field(default_factory=dict)
+    delay_lower: tuple[float, float] = (0.0, 0.0)
 
     @property
     def variation(self) -> GainVariation:
@@ -71,15 +74,19 @@ class GainCertificate:
         return parse_gain_variation(self.gain_variation)
 
     def check(self, params: TeleoperatorParams, forward_bound: float | None = None,
-              backward_bound: float | None = None) -> None:
-        """Refuse the certificate for another plant or for delays beyond its bounds.
+              backward_bound: float | None = None,
+              floors: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Refuse the certificate for another plant or for delays outside its bounds.
 
         Parameters
         ----------
         params : TeleoperatorParams
             The plant it is to be used on.
         forward_bound, backward_bound : float, optional
-            Declared bounds of the delay profiles in use (seconds).
+            Declared upper bounds of the delay profiles in use (seconds).
+        floors : tuple of float
+            Declared lower bounds of the forward and backward profiles (seconds): a certificate
+            for delays from ``T_i_min > 0`` is refused for profiles that can fall below it.
 
         Raises
         ------
@@ -97,6 +104,11 @@ class GainCertificate:
                 raise ValueError(f"the {name} delay can reach {bound:.6g} s, beyond the "
                                  f"certificate's bound {certified:g} s (delays in seconds: a "
                                  "value in milliseconds needs the ms unit)")
+        for name, floor, certified in zip(("forward", "backward"), floors, self.delay_lower,
+                                          strict=True):
+            if floor < certified:
+                raise ValueError(f"the {name} delay can fall to {floor:.6g} s, below the "
+                                 f"certificate's minimum delay {certified:g} s")
 
     def verify(self) -> None:
         """Re-check the certificate (:func:`.verification.verify_certificate`).
@@ -128,6 +140,7 @@ class GainCertificate:
             "violation": self.violation,
             "details": self.details,
             "plant": self.plant,
+            "delay_lower": list(self.delay_lower),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -179,12 +192,21 @@ class GainCertificate:
                               GainPolytope.from_dict(data["polytope"]),
                               bool(data["polytope_certified"]), tuple(data["assumptions"]),
                               data["violation"], dict(data["details"]),
-                              dict(data.get("plant", {})))
+                              dict(data.get("plant", {})),
+                              _delay_lower(data.get("delay_lower", (0.0, 0.0))))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
         if verify:
             certificate.verify()
         return certificate
+
+
+def _delay_lower(values: Any) -> tuple[float, float]:
+    """The recorded minimum delays, checked: two finite non-negative numbers."""
+    lower = tuple(float(v) for v in values)
+    if len(lower) != 2 or not all(math.isfinite(v) and v >= 0 for v in lower):
+        raise ValueError(f"delay_lower must be two non-negative numbers, got {list(values)}")
+    return lower  # type: ignore[return-value]
 
 
 def _json_float(value: float) -> float | str:

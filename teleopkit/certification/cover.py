@@ -8,8 +8,10 @@ it (one functional, gains as a multiplier uncertainty: a few seconds per cell), 
 conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
-spent. The gain vertices of the set are checked alone first: a vertex that no LMI certifies
-ends the search at once.
+spent. The cells of one level of the split are solved together on the local cores
+(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell); once the
+split has failed as many cells as the set has vertices, the vertices are checked alone: a
+vertex that no LMI certifies ends the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -18,7 +20,7 @@ bounds descending geometrically from there until one certifies the whole set.
 
 from __future__ import annotations
 
-from collections import deque
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,15 +30,19 @@ from teleopkit.certification.closed_form import nuno_joint_margins
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
     LMI_METHOD,
+    NO_LOWER,
     enumerated,
     lmi_certificate,
     vertex_certificate,
     vertex_delay_margin,
 )
+from teleopkit.certification.parallel import map_solves
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["CELL_BUDGET", "MIN_RATIO", "Cover", "CoverMargin", "cover_certificate", "cover_margin",
            "limiting_vertex", "set_certificate"]
+
+_log = logging.getLogger(__name__)
 
 CELL_BUDGET = 400
 """Most cell solves :func:`cover_certificate` spends before it gives up (not certified)."""
@@ -61,6 +67,14 @@ class Cover:
         Number of LMI solves, failed ones included.
     reason : str
         Why the cover is incomplete (empty when certified).
+    boxes : tuple
+        The box ``(lower, upper)`` each cell is the set clipped to (``None``: the cell is the
+        whole set), one per cell.
+    empty : tuple
+        Boxes of the split that miss the set (no certificate needed): with ``boxes`` they tile
+        the set's bounding box, which is what makes the cells a cover.
+    variation : str
+        The gain class each cell's certificate covers (``"switching"`` for split cells).
     """
 
     certified: bool
@@ -68,6 +82,9 @@ class Cover:
     certificates: tuple[Certificate, ...]
     solves: int
     reason: str = ""
+    boxes: tuple[tuple[np.ndarray, np.ndarray] | None, ...] = ()
+    empty: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    variation: str = "switching"
 
 
 def _box(lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
@@ -98,8 +115,8 @@ def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.n
 
 
 def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
-                      tr_max: float, method: str = LMI_METHOD,
-                      budget: int = CELL_BUDGET) -> Cover:
+                      tr_max: float, method: str = LMI_METHOD, budget: int = CELL_BUDGET,
+                      delay_lower: tuple[float, float] = NO_LOWER) -> Cover:
     """Certify every constant gain of a polytope for delays up to ``(T_l*, T_r*)`` by cells.
 
     Parameters
@@ -114,6 +131,8 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         A :data:`certify.METHODS` name.
     budget : int
         Most LMI solves to spend (vertex checks included).
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``.
 
     Returns
     -------
@@ -130,40 +149,62 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     corners = polytope.vertices()
     if corners.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
-    for action in corners:
-        cert = vertex_certificate(params, action, tl_max, tr_max, method)
-        if not cert.certified:
-            return Cover(False, (), (cert,), 1, f"the gain vertex {action.tolist()} is not "
-                                                  "certified alone")
-    solves = len(corners)
+    solves, failures, vertices_checked = 0, 0, False
     cells: list[GainPolytope] = []
     certs: list[Certificate] = []
-    queue = deque([(corners.min(axis=0), corners.max(axis=0))])
-    while queue:
-        cell = _clip(polytope, *queue.popleft())
-        if cell.is_empty():
-            continue
-        if solves >= budget:
-            return Cover(False, tuple(cells), tuple(certs), solves,
-                         f"budget of {budget} solves spent with {len(queue) + 1} cells left")
-        cert = lmi_certificate(params, cell, tl_max, tr_max, "switching", method)
-        solves += 1
-        if cert.certified:
-            cells.append(cell)
-            certs.append(cert)
-            continue
-        points = cell.vertices()
-        lower, upper = points.min(axis=0), points.max(axis=0)
-        if _ratios(lower, upper).max() < MIN_RATIO:
-            return Cover(False, tuple(cells), (*certs, cert), solves,
-                         f"the cell around {lower.tolist()} is too small to split further")
-        queue.extend(_halves(lower, upper))
-    return Cover(True, tuple(cells), tuple(certs), solves)
+    boxes: list[tuple[np.ndarray, np.ndarray] | None] = []
+    empty: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def partial(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
+        return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
+                     tuple(empty))
+
+    wave = [(corners.min(axis=0), corners.max(axis=0))]
+    while wave:
+        todo = []
+        for box in wave:
+            cell = _clip(polytope, *box)
+            if cell.is_empty():
+                empty.append(box)
+            else:
+                todo.append((box, cell))
+        if solves + len(todo) > budget:
+            return partial(f"budget of {budget} solves spent with {len(todo)} cells left")
+        _log.info("T* = %.4g s: %d cells certified, solving %d", max(tl_max, tr_max), len(cells),
+                  len(todo))
+        results = map_solves(lmi_certificate, [(params, cell, tl_max, tr_max, "switching",
+                                                 method, delay_lower) for _, cell in todo])
+        solves += len(todo)
+        wave = []
+        for (box, cell), cert in zip(todo, results, strict=True):
+            if cert.certified:
+                cells.append(cell)
+                certs.append(cert)
+                boxes.append(box)
+                continue
+            if _ratios(*box).max() < MIN_RATIO:
+                return partial(f"the cell around {box[0].tolist()} is too small to split "
+                               "further", (cert,))
+            failures += 1
+            wave.extend(_halves(*box))
+        if wave and not vertices_checked and failures >= len(corners):
+            # splitting has cost as much as checking the vertices: a vertex that fails alone
+            # would keep it going to the budget
+            vertices_checked = True
+            checks = map_solves(vertex_certificate, [(params, action, tl_max, tr_max, method,
+                                                      delay_lower) for action in corners])
+            solves += len(checks)
+            for action, vertex in zip(corners, checks, strict=True):
+                if not vertex.certified:
+                    return partial(f"the gain vertex {action.tolist()} is not certified alone",
+                                   (vertex,))
+    return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty))
 
 
 def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                     tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
-                    budget: int = CELL_BUDGET) -> Cover:
+                    budget: int = CELL_BUDGET,
+                    delay_lower: tuple[float, float] = NO_LOWER) -> Cover:
     """Certify a gain set the cheapest sound way: one LMI, or cells for many constant gains.
 
     Parameters
@@ -182,6 +223,8 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         A :data:`certify.METHODS` name.
     budget : int
         Most solves for a cover.
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``.
 
     Returns
     -------
@@ -189,11 +232,12 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         The verdict.
     """
     if variation == "frozen" and not enumerated(params, polytope):
-        return cover_certificate(params, polytope, tl_max, tr_max, method, budget)
-    cert = lmi_certificate(params, polytope, tl_max, tr_max, variation, method)
+        return cover_certificate(params, polytope, tl_max, tr_max, method, budget, delay_lower)
+    cert = lmi_certificate(params, polytope, tl_max, tr_max, variation, method, delay_lower)
     if cert.certified:
-        return Cover(True, (polytope,), (cert,), 1)
-    return Cover(False, (), (cert,), 1, f"LMI ({method}) {cert.status}, not certified")
+        return Cover(True, (polytope,), (cert,), 1, boxes=(None,), variation=variation)
+    return Cover(False, (), (cert,), 1, f"LMI ({method}) {cert.status}, not certified",
+                 variation=variation)
 
 
 @dataclass(frozen=True)
@@ -224,7 +268,8 @@ class CoverMargin:
 
 
 def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
-                    method: str = LMI_METHOD) -> tuple[tuple[float, ...], float]:
+                    method: str = LMI_METHOD, delay_lower: tuple[float, float] = NO_LOWER
+                    ) -> tuple[tuple[float, ...], float]:
     """The gain vertex with the smallest closed-form margin and its frozen LMI margin alone.
 
     Ties (the margin is the smallest over joints) go to the vertex whose other joints' margins
@@ -241,6 +286,8 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
         Remote gains, not empty.
     method : str
         A :data:`certify.METHODS` name.
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)`` kept while ``T*`` grows.
 
     Returns
     -------
@@ -260,12 +307,15 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
     # the smallest closed-form margin, ties broken by the other joints' margins
     ranks = np.sort(nuno_joint_margins(params, corners), axis=1)
     worst = corners[int(np.lexsort(ranks.T[::-1])[0])]
-    return tuple(worst.tolist()), vertex_delay_margin(params, worst, method)
+    return tuple(worst.tolist()), vertex_delay_margin(params, worst, method,
+                                                      delay_lower=delay_lower)
 
 
 def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str = LMI_METHOD,
-                 shrink: float = 0.9, attempts: int = 6, lower: float = 0.0,
-                 budget: int = CELL_BUDGET) -> CoverMargin:
+                 shrink: float = 0.9, attempts: int = 6, known: float = 0.0,
+                 budget: int = CELL_BUDGET,
+                 limit: tuple[tuple[float, ...], float] | None = None,
+                 delay_lower: tuple[float, float] = NO_LOWER) -> CoverMargin:
     """Largest common delay bound ``T* = T_l* = T_r*`` certified for every constant gain of a set.
 
     The frozen LMI margin of the gain vertex that limits the closed form, alone (a bisection,
@@ -286,11 +336,15 @@ def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str
         factor of the largest bound a cover certifies (if tried bounds are monotone).
     attempts : int
         Most covers tried.
-    lower : float
+    known : float
         A margin already known (for example the switching-gain margin): bounds at or below it
         are not tried, and it is returned if no cover certifies above it.
     budget : int
         Most solves per cover.
+    limit : tuple, optional
+        :func:`limiting_vertex` of the set (for the same ``delay_lower``), if already known.
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)`` kept while ``T*`` varies.
 
     Returns
     -------
@@ -304,14 +358,16 @@ def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str
     """
     if not 0.0 < shrink < 1.0 or attempts < 1:
         raise ValueError(f"need 0 < shrink < 1 and attempts >= 1, got {shrink}, {attempts}")
-    vertex, limit = limiting_vertex(params, polytope, method)
-    solves, bound = 0, limit
+    vertex, top = (limit if limit is not None
+                   else limiting_vertex(params, polytope, method, delay_lower))
+    solves, bound = 0, top
     for _ in range(attempts):
         bound *= shrink
-        if bound <= lower:
+        if bound <= known:
             break
-        cover = cover_certificate(params, polytope, bound, bound, method, budget)
+        _log.info("delay margin in [%.4g, %.4g] s: trying %.4g s", known, top, bound)
+        cover = cover_certificate(params, polytope, bound, bound, method, budget, delay_lower)
         solves += cover.solves
         if cover.certified:
-            return CoverMargin(bound, limit, vertex, cover, solves)
-    return CoverMargin(lower, limit, vertex, None, solves)
+            return CoverMargin(bound, top, vertex, cover, solves)
+    return CoverMargin(known, top, vertex, None, solves)

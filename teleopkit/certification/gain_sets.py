@@ -281,6 +281,23 @@ class GainPolytope:
         """Whether some joint has no admissible gain."""
         return any(self.joint_vertices(i).size == 0 for i in range(self.dimension // 2))
 
+    def same_as(self, other: GainPolytope) -> bool:
+        """Whether ``other`` has the same rows ``G x <= h`` (to rounding).
+
+        Parameters
+        ----------
+        other : GainPolytope
+            Another polytope.
+
+        Returns
+        -------
+        bool
+            ``True`` for the same inequalities in the same order.
+        """
+        return (self.G.shape == other.G.shape
+                and bool(np.allclose(self.G, other.G, rtol=1e-12, atol=0))
+                and bool(np.allclose(self.h, other.h, rtol=1e-12, atol=1e-15)))
+
     def to_dict(self) -> dict[str, object]:
         """Plain-data form for JSON (``G``, ``h``, ``labels``)."""
         return {"G": self.G.tolist(), "h": self.h.tolist(), "labels": list(self.labels)}

@@ -9,22 +9,28 @@ large sets is searched by covers between a lower bound and the limiting vertex's
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation
+from teleopkit.certification.classes import parse_gain_variation as parse_variation
 from teleopkit.certification.closed_form import nuno_polytope
-from teleopkit.certification.cover import cover_margin, limiting_vertex, set_certificate
+from teleopkit.certification.cover import Cover, cover_margin, limiting_vertex, set_certificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
     LMI_METHOD,
+    NO_LOWER,
     enumerated,
     lmi_delay_margin,
     vertex_certificate,
 )
-from teleopkit.model.params import TeleoperatorParams, plant_record
+from teleopkit.certification.proof import certificate_proof, cover_proof, verify_proof
+from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
-__all__ = ["MARGIN_BUDGET", "certify_lmi"]
+__all__ = ["MARGIN_BUDGET", "certify_lmi", "cut_polytope", "lmi_assumptions", "verify_lmi"]
+
+_log = logging.getLogger(__name__)
 
 MARGIN_BUDGET = 120
 """Most LMI solves per cover when :func:`certify_lmi` searches the margin of constant gains of
@@ -32,32 +38,61 @@ a large certified set (two covers at most)."""
 
 
 def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                   method: str) -> str:
+                   method: str, delay_lower: tuple[float, float]) -> str:
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
     for action in GainPolytope.from_box(box).vertices():
-        if not vertex_certificate(params, action, tl_max, tr_max, method).certified:
+        if not vertex_certificate(params, action, tl_max, tr_max, method,
+                                  delay_lower).certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
                     f"B_r = {action[n:].tolist()} for T_l* = {tl_max:g}, T_r* = {tr_max:g}")
     return (f"LMI ({method}) infeasible for the box as a whole (every vertex is certified "
             "alone)")
 
 
-def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                  kind: str, method: str, steps: int) -> tuple[GainPolytope, bool]:
-    """Largest certified polytope of the family ``box`` cut by the closed form at ``s T*``.
+def cut_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                 scale: float) -> GainPolytope:
+    """A member of the family of :func:`certify_lmi`: the box cut by the closed form at ``s T*``.
 
-    ``s = 1`` is the closed-form polytope; smaller ``s`` cut less. Bisection on ``s`` over
-    ``steps`` solves after the first certified member (doubling ``s`` up to three times when
-    ``s = 1`` is not certified).
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    box : GainBox
+        Remote gain ranges.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    scale : float
+        The factor ``s`` (1: the closed-form polytope; smaller cuts less).
+
+    Returns
+    -------
+    GainPolytope
+        The member.
     """
-    def member(scale: float) -> GainPolytope:
-        return nuno_polytope(params, box, scale * tl_max, scale * tr_max)
+    return nuno_polytope(params, box, scale * tl_max, scale * tr_max)
+
+
+def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+                  kind: str, method: str, steps: int, delay_lower: tuple[float, float]
+                  ) -> tuple[float, Cover | None]:
+    """Largest certified member of the family :func:`cut_polytope`, by its scale ``s``.
+
+    Bisection on ``s`` over ``steps`` solves after the first certified member (doubling ``s``
+    up to three times when ``s = 1`` is not certified). Returns ``s`` and the member's cover
+    (``s = 1`` and ``None`` if no member was certified).
+    """
+    covers: dict[float, Cover] = {}
 
     def certified(scale: float) -> bool:
-        polytope = member(scale)
-        return (not polytope.is_empty()
-                and set_certificate(params, polytope, tl_max, tr_max, kind, method).certified)
+        _log.info("largest certified cut: trying s = %.4g (certified: %s)", scale,
+                  max((s for s, c in covers.items() if c.certified), default="none"))
+        polytope = cut_polytope(params, box, tl_max, tr_max, scale)
+        if polytope.is_empty():
+            return False
+        covers[scale] = set_certificate(params, polytope, tl_max, tr_max, kind, method,
+                                        delay_lower=delay_lower)
+        return covers[scale].certified
 
     low, high = 0.0, 1.0
     for _ in range(3):
@@ -65,16 +100,16 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
             break
         low, high = high, 2.0 * high
     else:
-        return member(1.0), False
+        return 1.0, None
     for _ in range(steps):
         mid = 0.5 * (low + high)
         low, high = (low, mid) if certified(mid) else (mid, high)
-    return member(high), True
+    return high, covers[high]
 
 
 def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                variation: GainVariation, method: str = LMI_METHOD,
-                steps: int = 3) -> GainCertificate:
+                variation: GainVariation, delay_lower: tuple[float, float] = NO_LOWER,
+                method: str = LMI_METHOD, steps: int = 3) -> GainCertificate:
     """The LMI certificate of a gain box on the linearisation at rest.
 
     Parameters
@@ -87,6 +122,8 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
         Delay bounds in seconds.
     variation : GainVariation
         Gain class (``rate:R`` is certified as switching: held gains jump).
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``: the delays lie in ``[T_i_min, T_i*]``.
     method : str
         A :data:`certify.METHODS` name.
     steps : int
@@ -101,43 +138,84 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
         raise ValueError(f"the LMI method covers frozen, switching and rate:R gains, not "
                          f"{variation}; certify {variation} with the closed form (nuno)")
     kind = "frozen" if variation.kind == "frozen" else "switching"
+    bounds = (tl_max, tr_max)
     whole = GainPolytope.from_box(box)
-    verdict = set_certificate(params, whole, tl_max, tr_max, kind, method)
+    verdict = set_certificate(params, whole, tl_max, tr_max, kind, method,
+                              delay_lower=delay_lower)
     cert = verdict.certificates[-1]
+    proof_details: dict[str, Any] = {}
     if verdict.certified:
         polytope, polytope_certified, violation = whole, True, None
+        proof_details["proof"] = cover_proof(verdict, bounds, delay_lower)
     else:
-        polytope, polytope_certified = _lmi_polytope(params, box, tl_max, tr_max, kind, method,
-                                                     steps)
-        violation = _lmi_violation(params, box, tl_max, tr_max, method)
-    known = min(tl_max, tr_max) if verdict.certified else 0.0
-    margin, margin_details = _lmi_margin(params, whole, kind, method, known)
-    assumptions = (
-        "linearisation at rest (any rest configuration), free space, the modelled operator "
-        "spring and damper, no torque saturation",
-        "time-varying delays 0 <= T_i(t) <= T_i*, derivative unrestricted",
-        {"frozen": "constant (frozen) remote gains",
+        scale, cover = _lmi_polytope(params, box, tl_max, tr_max, kind, method, steps,
+                                     delay_lower)
+        polytope = cut_polytope(params, box, tl_max, tr_max, scale)
+        polytope_certified = cover is not None
+        proof_details["polytope_scale"] = scale
+        if cover is not None:
+            proof_details["proof"] = cover_proof(cover, bounds, delay_lower)
+        violation = _lmi_violation(params, box, tl_max, tr_max, method, delay_lower)
+    known = min(bounds) if verdict.certified else 0.0
+    margin, margin_details = _lmi_margin(params, whole, kind, method, known,
+                                         proof_details.get("proof"), delay_lower)
+    details = {"lmi_method": method, "solver_status": cert.status,
+               "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
+               "cells": len(verdict.cells), "solves": verdict.solves,
+               "how": _how(params, whole, kind, verdict),
+               "lmi_assumptions": list(cert.assumptions), **margin_details, **proof_details}
+    return GainCertificate(verdict.certified, "lmi", str(variation), bounds, margin, box,
+                           polytope, polytope_certified, lmi_assumptions(variation, delay_lower),
+                           violation, details, plant_record(params), delay_lower)
+
+
+def lmi_assumptions(variation: GainVariation, delay_lower: tuple[float, float] = NO_LOWER
+                    ) -> tuple[str, ...]:
+    """What an LMI certificate of a gain class covers, in the user's words.
+
+    Parameters
+    ----------
+    variation : GainVariation
+        The gain class certified.
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``.
+
+    Returns
+    -------
+    tuple of str
+        The assumptions (how the proof was built is in the certificate's ``details``).
+    """
+    floor = ("0" if not any(delay_lower) else
+             f"T_i_min (T_l_min = {delay_lower[0]:g} s, T_r_min = {delay_lower[1]:g} s)")
+    return (
+        "the linearisation at rest (any rest configuration, configuration frozen), free space, "
+        "the modelled operator spring and damper, no torque saturation",
+        f"time-varying delays {floor} <= T_i(t) <= T_i*, derivative unrestricted",
+        {"frozen": "constant (frozen) remote gains: every gain of the set, each held for the "
+                   "whole run",
          "switching": "remote gains switching arbitrarily fast inside the set",
          "rate": f"remote gains of rate at most {variation.rate:g}/s, certified as arbitrary "
                  "switching: the gains are held over each control period, so they jump by up "
                  "to the rate times the period, and only switching covers jumps"}[variation.kind],
-        *cert.assumptions,
     )
+
+
+def _how(params: TeleoperatorParams, whole: GainPolytope, kind: str, verdict: Cover) -> str:
+    """How the verdict was proven, for the certificate's details."""
     if kind == "frozen" and not enumerated(params, whole):
-        assumptions += (
-            "constant gains of a large set: covered by cells, each certified for gains switching "
-            "inside it; the delay margin likewise when the set is certified, else the whole "
-            "set's with switching gains (a lower bound); details.margin_limit is an upper limit",)
-    details = {"lmi_method": method, "solver_status": cert.status,
-               "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
-               "cells": len(verdict.cells), "solves": verdict.solves, **margin_details}
-    return GainCertificate(verdict.certified, "lmi", str(variation), (tl_max, tr_max), margin,
-                           box, polytope, polytope_certified, assumptions, violation, details,
-                           plant_record(params))
+        return (f"constant gains of a large set: covered by {len(verdict.cells)} cells, each "
+                "certified for gains switching inside it (one functional per cell, gains as "
+                "multiplier uncertainties); the margin likewise, margin_limit an upper limit")
+    if kind == "frozen":
+        return ("one functional per gain vertex and rest configuration (enumerated), which "
+                "covers each constant gain of the set")
+    return ("one functional for the whole set, gains as multiplier uncertainties, which covers "
+            "gains switching arbitrarily fast")
 
 
 def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, method: str,
-                known: float) -> tuple[float, dict[str, Any]]:
+                known: float, known_proof: dict[str, Any] | None,
+                delay_lower: tuple[float, float]) -> tuple[float, dict[str, Any]]:
     """Delay margin of a gain set and how it was found (cells for constant gains of large sets).
 
     The whole set's margin with one functional is a lower bound for constant gains beyond
@@ -147,13 +225,69 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the limiting
     vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
     """
-    single = float(lmi_delay_margin(params, whole, kind, method).margin or 0.0)
+    def single() -> tuple[float, dict[str, Any] | None]:
+        found = lmi_delay_margin(params, whole, kind, method, delay_lower=delay_lower)
+        margin = float(found.margin or 0.0)
+        return margin, certificate_proof(found, kind) if margin > 0 else None
+
     if kind != "frozen" or enumerated(params, whole):
-        return single, {}
-    lower = max(single, known)
-    if known > 0:
-        found = cover_margin(params, whole, method, attempts=2, lower=lower, budget=MARGIN_BUDGET)
-        vertex, limit, margin = found.vertex, found.limit, found.margin
-    else:
-        (vertex, limit), margin = limiting_vertex(params, whole, method), lower
-    return margin, {"margin_limit": limit, "margin_limit_vertex": list(vertex)}
+        margin, proof = single()
+        return margin, {"margin_proof": proof}
+    (vertex, limit) = limiting_vertex(params, whole, method, delay_lower)
+    found = (cover_margin(params, whole, method, attempts=2, known=known, budget=MARGIN_BUDGET,
+                          limit=(vertex, limit), delay_lower=delay_lower)
+             if known > 0 else None)
+    if found is not None and found.cover is not None:
+        margin = found.margin
+        proof = cover_proof(found.cover, (margin, margin), delay_lower)
+    else:  # no cover above what is known: the one-functional margin, or the requested bounds
+        margin, proof = single()
+        if known >= margin:
+            margin, proof = known, known_proof
+    return margin, {"margin_limit": limit, "margin_limit_vertex": list(vertex),
+                    "margin_proof": proof}
+
+
+def verify_lmi(certificate: GainCertificate) -> None:
+    """Raise unless an LMI certificate's proofs hold for the plant and box it records.
+
+    The offered polytope must be the box (when the box is certified) or the member of
+    :func:`cut_polytope` at the recorded scale; a certified polytope needs a proof that holds
+    (:func:`~teleopkit.certification.proof.verify_proof`), and so does a positive delay margin.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        An LMI certificate (``method == "lmi"``).
+
+    Raises
+    ------
+    ValueError
+        One line naming what does not check out.
+    """
+    params = plant_params(certificate.plant)
+    details = certificate.details
+    tl_max, tr_max = certificate.delay_bounds
+    variation = parse_variation(certificate.gain_variation)
+    if certificate.assumptions != lmi_assumptions(variation, certificate.delay_lower):
+        raise ValueError("the certificate's assumptions are not those of its gain class and "
+                         "delay bounds (edited?)")
+    covering = ("frozen", "switching") if variation.kind == "frozen" else ("switching",)
+    whole = GainPolytope.from_box(certificate.box)
+    expected = (whole if certificate.certified else
+                cut_polytope(params, certificate.box, tl_max, tr_max,
+                             float(details.get("polytope_scale", 1.0))))
+    if not expected.same_as(certificate.polytope):
+        raise ValueError("the certificate's gain polytope is not the one its plant, box and "
+                         "delay bounds give (edited?)")
+    if certificate.polytope_certified or certificate.certified:
+        if "proof" not in details:
+            raise ValueError("the certificate claims a certified set but carries no LMI proof")
+        verify_proof(params, certificate.polytope, details["proof"], (tl_max, tr_max), covering,
+                     certificate.delay_lower)
+    if certificate.delay_margin > 0:
+        proof = details.get("margin_proof")
+        if proof is None:
+            raise ValueError("the certificate states a delay margin but carries no LMI proof of it")
+        margin = certificate.delay_margin
+        verify_proof(params, whole, proof, (margin, margin), covering, certificate.delay_lower)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import click
 
-from teleopkit.cli.options import gain_variation
+from teleopkit.cli.options import gain_variation, progress
 
 __all__ = ["certify"]
 
 _BOUND = click.FloatRange(min=0, min_open=True, max=1e6)
+_FLOOR = click.FloatRange(min=0, max=1e6)
 
 
 @click.command()
@@ -22,6 +23,11 @@ _BOUND = click.FloatRange(min=0, min_open=True, max=1e6)
               help="Forward delay bound T_l* [s].")
 @click.option("--tr-max", type=_BOUND, default=1.0, show_default=True,
               help="Backward delay bound T_r* [s].")
+@click.option("--tl-min", type=_FLOOR, default=0.0, show_default=True,
+              help="Minimum forward delay T_l_min [s] (a network's latency floor; used by the "
+                   "LMIs, the closed form covers delays from 0).")
+@click.option("--tr-min", type=_FLOOR, default=0.0, show_default=True,
+              help="Minimum backward delay T_r_min [s].")
 @click.option("--method", type=click.Choice(["nuno", "lmi", "all"]), default="nuno",
               show_default=True,
               help="nuno: closed form and its storage (instant); lmi: LK/LMI on the "
@@ -32,8 +38,14 @@ _BOUND = click.FloatRange(min=0, min_open=True, max=1e6)
               help="frozen | switching | rate:R | scheduled:L | tank[:T0] (R in gain units per "
                    "second, L a log budget per episode, T0 an initial tank level).")
 @click.option("--json", "as_json", is_flag=True, help="Print the certificate as JSON.")
+@click.option("--cache/--no-cache", default=True, show_default=True,
+              help="Reuse an LMI certificate of the same question from $TELEOPKIT_CACHE (else "
+                   "~/.cache/teleopkit), re-verified against the plant; store new ones there.")
+@click.option("--progress/--no-progress", "show_progress", default=True, show_default=True,
+              help="Show the LMI search (cells solved, margin bracket) on a terminal.")
 def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, tr_max: float,
-            method: str, variation: object, as_json: bool) -> int:
+            tl_min: float, tr_min: float, method: str, variation: object, as_json: bool,
+            cache: bool, show_progress: bool) -> int:
     """Certify that every remote gain in the ranges is stable for the delay bounds.
 
     The answer says what it covers: the gain class in plain words and every assumption (see
@@ -41,15 +53,40 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     """
     from dataclasses import replace
 
-    from teleopkit.certification import best_certificate, certify_gains, methods_for
+    from teleopkit.certification import (
+        GainCertificate,
+        best_certificate,
+        certify_gains,
+        methods_for,
+    )
+    from teleopkit.certification.cache import cached, question_key
     from teleopkit.certification.gain_sets import GainBox, parse_range
     from teleopkit.certification.report import certificate_table
     from teleopkit.model.params import PDGains, paper_setup
 
+    for option, low, high in (("--tl-min", tl_min, tl_max), ("--tr-min", tr_min, tr_max)):
+        if not low < high:  # NaN included
+            raise click.BadParameter(f"{low:g} s is not a delay below the upper bound {high:g} s",
+                                     param_hint=f"'{option}'")
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
-    results = [certify_gains(params, box, tl_max, tr_max, name, variation)  # type: ignore[arg-type]
-               for name in methods_for(method, variation)]  # type: ignore[arg-type]
+
+    def answer(name: str) -> GainCertificate:
+        def compute() -> GainCertificate:
+            return certify_gains(params, box, tl_max, tr_max, name, variation, tl_min, tr_min)
+
+        if name != "lmi" or not cache:  # the closed form is instant
+            return compute()
+        key = question_key(params, box, (tl_max, tr_max), (tl_min, tr_min), name,
+                           str(variation))
+        certificate, reused = cached(key, compute)
+        if reused:
+            click.echo("(LMI certificate reused from the cache, re-verified; --no-cache to "
+                       "recompute)", err=True)
+        return certificate
+
+    with progress(show_progress):
+        results = [answer(name) for name in methods_for(method, variation)]
     best = best_certificate(results)
     if as_json:
         import json

@@ -7,11 +7,16 @@ before a run starts, so a bad path never leaves half the results behind.
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import os
 import shutil
+import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
@@ -21,7 +26,7 @@ if TYPE_CHECKING:
 
 __all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
            "check_output_dir", "delay_spec", "gain_variation", "gains", "load_certificate",
-           "single_thread"]
+           "progress", "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
@@ -214,7 +219,18 @@ def load_certificate(path: Path) -> GainCertificate:
 
 
 def certificate_option(function: Any) -> Any:
-    """The ``--certificate FILE`` option of the commands that run a safety layer."""
+    """The ``--certificate FILE`` option of the commands that run a safety layer.
+
+    Parameters
+    ----------
+    function : callable
+        The click command (or already decorated function) to add the option to.
+
+    Returns
+    -------
+    callable
+        ``function`` with the option attached.
+    """
     return click.option(
         "--certificate", type=click.Path(dir_okay=False, path_type=Path), default=None,
         help="Gain certificate (the JSON of teleopkit certify --json) whose set the safety "
@@ -227,3 +243,54 @@ def single_thread() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+class _StatusLine(logging.Handler):
+    """Progress records as one status line on a terminal, rewritten in place."""
+
+    def __init__(self, stream: TextIO) -> None:
+        super().__init__(logging.INFO)
+        self.stream = stream
+        self.start = time.monotonic()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        elapsed = time.monotonic() - self.start
+        text = f"[{elapsed:6.1f} s] {record.getMessage()}"
+        self.stream.write(f"\r\033[K{text[:shutil.get_terminal_size().columns - 1]}")
+        self.stream.flush()
+
+    def close(self) -> None:
+        self.stream.write("\r\033[K")
+        self.stream.flush()
+        super().close()
+
+
+@contextlib.contextmanager
+def progress(enabled: bool, logger: str = "teleopkit.certification") -> Iterator[None]:
+    """Show the progress a command's library logs (cells solved, margin bracket) on stderr.
+
+    Parameters
+    ----------
+    enabled : bool
+        Whether to show it (a terminal only: redirected output stays clean).
+    logger : str
+        The logger whose records are shown.
+
+    Yields
+    ------
+    None
+        While the command runs.
+    """
+    if not (enabled and sys.stderr.isatty()):
+        yield
+        return
+    handler, log = _StatusLine(sys.stderr), logging.getLogger(logger)
+    previous = log.level
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(previous)
+        handler.close()

@@ -43,13 +43,14 @@ def env_config(certificate: Path | None, duration: float) -> FlexTeleopConfig:
         delay bounds.
     """
     from teleopkit.rl.env import FlexTeleopConfig
-    from teleopkit.sim.scenarios import PAPER_DELAY_BOUND
+    from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, PAPER_DELAY_FLOOR
 
     config = FlexTeleopConfig(episode_length=duration)
     if certificate is None:
         return config
     loaded = load_certificate(certificate)
-    loaded.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND)  # before any work
+    loaded.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
+                 (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))  # before any work
     return FlexTeleopConfig(certificate=loaded, episode_length=duration)
 
 

@@ -54,6 +54,11 @@ class PiecewiseDelay:
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "bound", bound)
 
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest value."""
+        return float(self.values.min())
+
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``, shape ``(S, B)``.
 
@@ -115,6 +120,11 @@ class SquareWaveDelay:
         for name, array in zip(("low", "high", "half_period", "phase"), arrays, strict=True):
             object.__setattr__(self, name, array)
         object.__setattr__(self, "bound", bound)
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest of the two delays."""
+        return float(min(self.low.min(), self.high.min()))
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``, shape ``(S, B)``.

@@ -22,6 +22,7 @@ from teleopkit.delays.profiles import (
     SinusoidalDelay,
     SwitchingDelay,
     TraceDelay,
+    delay_floor,
 )
 
 __all__ = ["ScaledDelay", "StackedDelay", "scale_delay", "stack_delays"]
@@ -57,6 +58,11 @@ class ScaledDelay:
     def bound(self) -> float:
         """Declared bound: the profile's bound times the factor."""
         return float(self.profile.bound) * self.factor
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the profile's floor times the factor."""
+        return delay_floor(self.profile) * self.factor
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the scaled delays at the times ``t``, shape ``(S, B)``.
@@ -137,6 +143,11 @@ class StackedDelay:
     def bound(self) -> float:
         """Declared bound: the largest of the parts' bounds."""
         return max(float(part.bound) for part in self.parts)
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest of the parts' floors."""
+        return min(delay_floor(part) for part in self.parts)
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``, shape ``(S, B)``.

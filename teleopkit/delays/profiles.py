@@ -25,6 +25,7 @@ from teleopkit.delays.units import UNITS, column_unit
 
 __all__ = [
     "PAPER_DELAY_MAX",
+    "PAPER_DELAY_MIN",
     "ConstantDelay",
     "DelayProfile",
     "FourierDelay",
@@ -33,6 +34,7 @@ __all__ = [
     "TraceDelay",
     "check_delays",
     "declared_bound",
+    "delay_floor",
 ]
 
 PAPER_C0 = 0.9613462407597305
@@ -64,17 +66,19 @@ def _paper_shape(t: np.ndarray) -> np.ndarray:
     return out
 
 
-def _paper_maximum(points: int = 20001) -> float:
-    """Rigorous upper bound of ``y(t)``: grid maximum plus slope bound times half the spacing."""
+def _paper_extremes(points: int = 20001) -> tuple[float, float]:
+    """Rigorous bounds of ``y(t)``: grid extremes widened by the slope bound times half a step."""
     t = np.linspace(0.0, 1.0 / PAPER_F0, points)
     harmonics = np.arange(1, PAPER_SIN.size + 1)
     slope = 2.0 * np.pi * PAPER_F0 * float(harmonics @ (np.abs(PAPER_SIN) + np.abs(PAPER_COS)))
-    return float(_paper_shape(t).max()) + slope * (t[1] - t[0]) / 2.0
+    shape, slack = _paper_shape(t), slope * (t[1] - t[0]) / 2.0
+    return float(shape.min()) - slack, float(shape.max()) + slack
 
 
-PAPER_DELAY_MAX: float = _paper_maximum()
-"""Rigorous upper bound of the Fourier fit of the paper's Fig. 3, about 1.0003 s (slightly above
-the paper's 1 s): :class:`FourierDelay` divides the fit by it."""
+PAPER_DELAY_MIN, PAPER_DELAY_MAX = _paper_extremes()
+"""Rigorous lower and upper bounds of the Fourier fit of the paper's Fig. 3, about 0.9027 s and
+1.0003 s (the maximum slightly above the paper's 1 s): :class:`FourierDelay` divides the fit by
+the maximum."""
 
 
 class DelayProfile(Protocol):
@@ -83,6 +87,11 @@ class DelayProfile(Protocol):
     @property
     def bound(self) -> float:
         """Declared upper bound in seconds."""
+        ...
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound in seconds (a certificate for interval delays needs it)."""
         ...
 
     def sample(self, t: np.ndarray) -> np.ndarray:
@@ -144,6 +153,22 @@ def check_delays(kind: str, values: np.ndarray, bound: float) -> np.ndarray:
     if high > bound:
         raise ValueError(f"{kind} reaches {high:.6g} s, above its declared bound {bound:.6g} s")
     return values
+
+
+def delay_floor(profile: DelayProfile) -> float:
+    """A profile's declared lower bound in seconds; 0 for a profile that declares none.
+
+    Parameters
+    ----------
+    profile : DelayProfile
+        Any delay profile.
+
+    Returns
+    -------
+    float
+        ``profile.floor`` when the profile has one, else 0 (the delay may reach 0).
+    """
+    return float(getattr(profile, "floor", 0.0))
 
 
 def declared_bound(values: np.ndarray, bound: float) -> float:
@@ -211,6 +236,11 @@ class FourierDelay:
         if math.isnan(self.bound):
             object.__setattr__(self, "bound", float(scale.max()))
 
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest scale times the fit's rigorous relative minimum."""
+        return float(np.min(self.scale)) * PAPER_DELAY_MIN / PAPER_DELAY_MAX
+
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``.
 
@@ -259,6 +289,11 @@ class ConstantDelay:
             raise ValueError(f"constant delay must be non-negative, got {value}")
         object.__setattr__(self, "value", value)
         object.__setattr__(self, "bound", declared_bound(value, self.bound))
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest value."""
+        return float(np.min(self.value))
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``.
@@ -313,6 +348,11 @@ class SinusoidalDelay:
     def bound(self) -> float:
         """Declared upper bound ``mean + amplitude``."""
         return self.mean + self.amplitude
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound ``mean - amplitude``."""
+        return self.mean - self.amplitude
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``.
@@ -395,6 +435,11 @@ class SwitchingDelay:
         """Declared upper bound ``high``."""
         return self.high
 
+    @property
+    def floor(self) -> float:
+        """Declared lower bound ``low``."""
+        return self.low
+
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Return the delays at the times ``t``.
 
@@ -452,6 +497,11 @@ class TraceDelay:
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "delays", delays)
         object.__setattr__(self, "bound", declared_bound(delays, self.bound))
+
+    @property
+    def floor(self) -> float:
+        """Declared lower bound: the smallest sample (interpolation never goes below it)."""
+        return float(self.delays.min())
 
     @classmethod
     def from_csv(cls, path: str | Path, unit: str | None = None,

@@ -44,7 +44,12 @@ from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.rl.registration import ENV_ID
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
-from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, Scenario, paper_scenarios
+from teleopkit.sim.scenarios import (
+    PAPER_DELAY_BOUND,
+    PAPER_DELAY_FLOOR,
+    Scenario,
+    paper_scenarios,
+)
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
@@ -248,7 +253,8 @@ class TeleopBatch:
         self.batch = batch
         self.certificate = (config.certificate if config.certificate is not None
                             else default_certificate(config.params))
-        self.certificate.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND)
+        self.certificate.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
+                               (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
         self.loop = CertifiedLoop(SafetyLayer.from_certificate(self.certificate,
                                                                config.control_period))
         self.steps = 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from teleopkit.delays.profiles import delay_floor
 from teleopkit.safety.layer import Projection, SafetyLayer
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.trajectory import StepResult, Trajectory
@@ -70,7 +71,8 @@ class CertifiedLoop:
         certificate = self.layer.certificate
         if certificate is not None:
             scenario = simulator.scenario
-            certificate.check(scenario.params, scenario.forward.bound, scenario.backward.bound)
+            certificate.check(scenario.params, scenario.forward.bound, scenario.backward.bound,
+                              (delay_floor(scenario.forward), delay_floor(scenario.backward)))
         simulator.reset()
         self._simulator = simulator
         self._applied = None

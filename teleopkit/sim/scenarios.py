@@ -10,10 +10,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
+from teleopkit.delays.profiles import (
+    PAPER_DELAY_MAX,
+    PAPER_DELAY_MIN,
+    ConstantDelay,
+    DelayProfile,
+    FourierDelay,
+)
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
-__all__ = ["PAPER_DELAY_BOUND", "PAPER_SCALES", "Scenario", "paper_scenarios",
+__all__ = ["PAPER_DELAY_BOUND", "PAPER_DELAY_FLOOR", "PAPER_SCALES", "Scenario", "paper_scenarios",
            "sample_reference_gains"]
 
 PAPER_SCALES = (0.5, 1.0)
@@ -22,6 +28,11 @@ PAPER_SCALES = (0.5, 1.0)
 PAPER_DELAY_BOUND = PAPER_SCALES[1]
 """Largest delay of :func:`paper_scenarios` in seconds: the scale times the Fourier profile,
 which :class:`~teleopkit.delays.profiles.FourierDelay` keeps within 1 s."""
+
+PAPER_DELAY_FLOOR = PAPER_SCALES[0] * PAPER_DELAY_MIN / PAPER_DELAY_MAX
+"""Smallest delay of :func:`paper_scenarios` in seconds (about 0.451 s): the smallest scale
+times the Fourier profile's rigorous minimum. A certificate for delays from at most this
+minimum covers the paper's scenarios."""
 
 
 @dataclass(frozen=True)
