@@ -110,7 +110,7 @@ def test_trace_from_csv(tmp_path):
     ("t,delay\n0,0.1\n0,0.2\n", "strictly increasing"),
     ("t,delay\n0,0.1\n1,-0.2\n", "negative"),
     ("t,delay\n0,abc\n1,0.2\n", "non-numeric"),
-    ("t\n0\n1\n", "time and a delay column"),
+    ("t\n0\n1\n", "no delay column"),
     ("t,delay\n0,nan\n1,0.2\n", "non-finite"),
 ])
 def test_bad_traces_are_refused(tmp_path, content, message):

@@ -168,7 +168,8 @@ def test_evaluate_command_writes_the_report(policy, tmp_path):
     (["reproduce", "--scenarios", "0"], "--scenarios"),
     (["evaluate", "--policy", "POLICY", "--certificate", "/no/such/cert.json"], "cert.json"),
     (["train", "--steps", "10", "--certificate", "NOT_A_POLICY"], "malformed gain certificate"),
-    (["train", "--steps", "10", "--certificate", "UNCERTIFIED"], "refusing to build"),
+    (["train", "--steps", "10", "--certificate", "UNCERTIFIED"], "polytope_certified"),
+    (["train", "--steps", "10", "--certificate", "EMPTY"], "no certified gain"),
 ])
 def test_bad_input_exits_2_with_one_line(policy, tmp_path, capsys, args, needle):
     junk = tmp_path / "junk.npz"
@@ -178,7 +179,9 @@ def test_bad_input_exits_2_with_one_line(policy, tmp_path, capsys, args, needle)
     uncertified = tmp_path / "uncertified.json"
     data = json.loads(certify_gains(paper_setup(), BOX, 1.0, 1.0).to_json())
     uncertified.write_text(json.dumps({**data, "polytope_certified": False}))
-    files = {"NOT_A_POLICY": junk, "POLICY": good, "UNCERTIFIED": uncertified}
+    empty = tmp_path / "empty.json"
+    empty.write_text(certify_gains(paper_setup(), BOX, 20.0, 20.0).to_json())
+    files = {"NOT_A_POLICY": junk, "POLICY": good, "UNCERTIFIED": uncertified, "EMPTY": empty}
     args = [str(files[a]) if a in files else a for a in args]
     assert main([*args, "--out", str(tmp_path / "out")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
