@@ -103,6 +103,18 @@ def test_held_out_scenarios_depend_on_the_seed_only(policy):
     assert not np.allclose(a["cost"], c["cost"])
 
 
+def test_unseen_delay_shapes_keep_the_scenarios_and_change_the_delays(policy):
+    paper = rollout(policy, 2, 8, ONE_SECOND)
+    switching = rollout(policy, 2, 8, ONE_SECOND, delay="switching:0:1:50ms")
+    assert np.array_equal(paper.trajectory.state[0], switching.trajectory.state[0])
+    delays = switching.trajectory.delays[:, :, 0]
+    assert set(np.round(delays, 9).ravel()) == {0.0, 1.0}
+    assert not np.allclose(paper.metrics()["cost"], switching.metrics()["cost"])
+    assert switching.unsafe_actions == 0
+    with pytest.raises(ValueError, match="unknown delay spec"):
+        evaluate({"TD3": policy}, 2, config=ONE_SECOND, delay="warp:3")
+
+
 def test_best_static_gains_are_certified_and_beat_the_grid_and_the_paper(layer):
     config = FlexTeleopConfig(episode_length=1.0)
     found = best_static_gains(layer, scenarios=3, seed=1, grid_points=4, max_evaluations=40,

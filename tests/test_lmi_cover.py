@@ -13,9 +13,15 @@ from teleopkit.certification.cover import (
     cover_margin,
     limiting_vertex,
     set_certificate,
+    vertex_margin,
 )
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import lmi_certificate, lmi_delay_margin
+from teleopkit.certification.lmi import (
+    lmi_certificate,
+    lmi_delay_margin,
+    vertex_certificate,
+    vertex_delay_margin,
+)
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import paper_setup
 
@@ -128,3 +134,13 @@ def test_two_joint_constant_gain_margin_beats_switching_and_the_closed_form():
     switching = lmi_delay_margin(params, GainPolytope.from_box(box), "switching").margin
     assert cert.certified and cert.delay_margin > max(switching, nuno_delay_margin(params, box))
     assert cert.delay_margin <= cert.details["margin_limit"]
+
+
+@pytest.mark.parametrize(("action", "guess"), [((10.0, 30.0), 1.0), ((10.0, 30.0), 0.05),
+                                               ((5.0, 60.0), 10.0)])
+def test_the_parallel_vertex_margin_agrees_with_a_bisection(one_joint, action, guess):
+    bisected = vertex_delay_margin(one_joint, np.array(action), rtol=0.01)
+    sectioned = vertex_margin(one_joint, np.array(action), guess=guess, rtol=0.01)
+    assert sectioned == pytest.approx(bisected, rel=0.021)
+    assert vertex_certificate(one_joint, np.array(action), sectioned, sectioned).certified
+

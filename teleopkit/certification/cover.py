@@ -21,6 +21,7 @@ bounds descending geometrically from there until one certifies the whole set.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,18 +35,20 @@ from teleopkit.certification.lmi import (
     enumerated,
     lmi_certificate,
     vertex_certificate,
-    vertex_delay_margin,
 )
-from teleopkit.certification.parallel import map_solves
+from teleopkit.certification.parallel import map_solves, workers
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["CELL_BUDGET", "MIN_RATIO", "Cover", "CoverMargin", "cover_certificate", "cover_margin",
-           "limiting_vertex", "set_certificate"]
+           "limiting_vertex", "set_certificate", "vertex_margin"]
 
 _log = logging.getLogger(__name__)
 
 CELL_BUDGET = 400
 """Most cell solves :func:`cover_certificate` spends before it gives up (not certified)."""
+
+_SMALLEST = 1e-4
+"""A bracket ``[T_min, T_min + this]`` without a certified bound ends a margin search (0 s)."""
 
 MIN_RATIO = 1.001
 """A failing cell whose every gain range is narrower than this ratio is not split further."""
@@ -306,9 +309,64 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
         raise ValueError("the gain set is empty: nothing to certify")
     # the smallest closed-form margin, ties broken by the other joints' margins
     ranks = np.sort(nuno_joint_margins(params, corners), axis=1)
-    worst = corners[int(np.lexsort(ranks.T[::-1])[0])]
-    return tuple(worst.tolist()), vertex_delay_margin(params, worst, method,
-                                                      delay_lower=delay_lower)
+    index = int(np.lexsort(ranks.T[::-1])[0])
+    worst = corners[index]
+    return tuple(worst.tolist()), vertex_margin(params, worst, method, delay_lower,
+                                                guess=float(ranks[index, 0]))
+
+
+def vertex_margin(params: TeleoperatorParams, action: np.ndarray, method: str = LMI_METHOD,
+                  delay_lower: tuple[float, float] = NO_LOWER, guess: float = 1.0,
+                  rtol: float = 0.02, h_max: float = 100.0) -> float:
+    """Largest common delay bound ``T*`` certified for one constant gain alone, on all cores.
+
+    A section search: each round solves one bound per worker
+    (:func:`~teleopkit.certification.parallel.map_solves`), doubling from ``guess`` until a
+    bound fails, then at evenly spaced bounds inside the bracket, until the bracket is within
+    ``rtol`` (with two workers it narrows three-fold per round, where a bisection halves it per
+    solve).
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    action : ndarray, shape (2 n,)
+        Remote gains ``[K_r..., B_r...]``.
+    method : str
+        A :data:`certify.METHODS` name.
+    delay_lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``.
+    guess : float
+        Where to start (the closed-form margin of the gain is a good one).
+    rtol : float
+        Relative width of the final bracket.
+    h_max : float
+        Largest bound tried.
+
+    Returns
+    -------
+    float
+        The largest certified bound found (0 if none is).
+    """
+    floor = max(delay_lower)
+    low, high, found = floor, math.inf, False
+    count = max(2, workers())
+    while math.isinf(high) or (high - low > rtol * high and high - floor > _SMALLEST):
+        if math.isinf(high):  # double until a bound fails
+            base = low if found else max(guess, 2.0 * floor, 1e-3)
+            points = base * 2.0 ** np.arange(int(found), count + int(found))
+            points = points[points <= h_max]
+            if points.size == 0:
+                break
+        else:  # evenly spaced inside the bracket
+            points = np.linspace(low, high, count + 2)[1:-1]
+        results = map_solves(vertex_certificate, [(params, action, h, h, method, delay_lower)
+                                                  for h in points])
+        certified = [h for h, cert in zip(points, results, strict=True) if cert.certified]
+        found = found or bool(certified)
+        low = max(certified, default=low)
+        high = min([h for h in points if h > low and h not in certified], default=high)
+    return float(low) if found else 0.0
 
 
 def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str = LMI_METHOD,

@@ -19,7 +19,7 @@ seed) also gets the standard deviation of the per-policy means (``seed_std``).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,9 @@ import pandas as pd
 from gymnasium.utils import seeding
 
 from teleopkit.certification.classes import parse_gain_variation
+from teleopkit.delays.spec import parse_delay
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
+from teleopkit.sim.scenarios import paper_scenarios
 from teleopkit.sim.trajectory import Trajectory
 
 __all__ = [
@@ -149,7 +151,7 @@ class Rollout:
 
 
 def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
-            config: FlexTeleopConfig | None = None) -> Rollout:
+            config: FlexTeleopConfig | None = None, delay: str = "paper") -> Rollout:
     """Run a controller on ``scenarios`` held-out scenarios for one episode.
 
     The scenarios are those :class:`~teleopkit.rl.env.FlexTeleopVectorEnv` draws after
@@ -165,6 +167,10 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
         Seed of the scenario draws (the same seed gives the same scenarios to every controller).
     config : FlexTeleopConfig, optional
         Environment settings.
+    delay : str
+        Delay profiles of both channels (:func:`~teleopkit.delays.spec.parse_delay`):
+        ``"paper"`` as in training, or a shape the controller never saw (for example
+        ``"switching:0:1:50ms"``); the operator reference gains are the same either way.
 
     Returns
     -------
@@ -172,7 +178,13 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
         The run.
     """
     core = TeleopBatch(config if config is not None else FlexTeleopConfig(), scenarios)
-    obs = core.draw(seeding.np_random(seed)[0])
+    rng = seeding.np_random(seed)[0]
+    if delay == "paper":
+        obs = core.draw(rng)
+    else:
+        forward, backward = parse_delay(delay, rng)
+        drawn = paper_scenarios(rng, scenarios, core.config.params)
+        obs = core.start(replace(drawn, forward=forward, backward=backward))
     records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": []}
     parts, applied = [core.loop.simulator.initial_record()], []
     for _ in range(core.config.max_steps):
@@ -193,7 +205,8 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
 
 def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scenarios: int = 32,
              seed: int = EVAL_SEED, config: FlexTeleopConfig | None = None,
-             configs: Mapping[str, FlexTeleopConfig] | None = None) -> pd.DataFrame:
+             configs: Mapping[str, FlexTeleopConfig] | None = None,
+             delay: str = "paper") -> pd.DataFrame:
     """Per-scenario metrics of every controller on the same held-out scenarios.
 
     Parameters
@@ -209,6 +222,8 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
     configs : mapping of str to FlexTeleopConfig, optional
         Settings of particular controllers (for example another certificate), by name;
         ``config`` for the others.
+    delay : str
+        Delay profiles of the scenarios (:func:`rollout`).
 
     Returns
     -------
@@ -220,7 +235,7 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
         policies = list(entry) if isinstance(entry, Sequence) else [entry]
         for index, policy in enumerate(policies):
             settings = (configs or {}).get(name, config)
-            table = rollout(policy, scenarios, seed, settings).metrics().reset_index()
+            table = rollout(policy, scenarios, seed, settings, delay).metrics().reset_index()
             table.insert(0, "policy", index)
             table.insert(0, "controller", name)
             frames.append(table)
