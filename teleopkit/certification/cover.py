@@ -9,9 +9,10 @@ conservative on a wide cell but close to the frozen certificate on a narrow one.
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
 spent. The cells of one level of the split are solved together on the local cores
-(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell); once the
-split has failed as many cells as the set has vertices, the vertices are checked alone: a
-vertex that no LMI certifies ends the search at once.
+(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell), beside the
+corner the closed form finds weakest, alone; once the split has failed as many cells as the set
+has vertices, the other vertices are checked alone with the next level: a vertex that no LMI
+certifies ends the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -162,6 +163,11 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
                      tuple(empty))
 
+    # the corner the closed form finds weakest is solved alone beside the first cell: when no
+    # LMI certifies it, nothing containing it is certified, and the search ends at once
+    weakest = corners[int(np.argmin(nuno_joint_margins(params, corners).min(axis=1)))]
+    vertex_args = (tl_max, tr_max, method, delay_lower)
+    pending = [("vertex", (params, weakest, *vertex_args))]
     wave = [(corners.min(axis=0), corners.max(axis=0))]
     while wave:
         todo = []
@@ -171,14 +177,20 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                 empty.append(box)
             else:
                 todo.append((box, cell))
-        if solves + len(todo) > budget:
+        if solves + len(pending) + len(todo) > budget:
             return partial(f"budget of {budget} solves spent with {len(todo)} cells left")
         _log.info("T* = %.4g s: %d cells certified, solving %d", max(tl_max, tr_max), len(cells),
                   len(todo))
-        results = map_solves(lmi_certificate, [(params, cell, tl_max, tr_max, "switching",
-                                                 method, delay_lower) for _, cell in todo])
-        solves += len(todo)
-        wave = []
+        tasks = [("cell", (params, cell, tl_max, tr_max, "switching", method, delay_lower))
+                 for _, cell in todo]
+        solved = map_solves(_solve, [*pending, *tasks])
+        checks, results = solved[:len(pending)], solved[len(pending):]
+        solves += len(pending) + len(todo)
+        for (_, (_, action, *_)), vertex in zip(pending, checks, strict=True):
+            if not vertex.certified:
+                return partial(f"the gain vertex {action.tolist()} is not certified alone",
+                               (vertex,))
+        pending, wave = [], []
         for (box, cell), cert in zip(todo, results, strict=True):
             if cert.certified:
                 cells.append(cell)
@@ -191,17 +203,17 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             failures += 1
             wave.extend(_halves(*box))
         if wave and not vertices_checked and failures >= len(corners):
-            # splitting has cost as much as checking the vertices: a vertex that fails alone
-            # would keep it going to the budget
+            # splitting has cost as much as checking the other vertices: one that fails alone
+            # would keep it going to the budget; they are solved with the next level
             vertices_checked = True
-            checks = map_solves(vertex_certificate, [(params, action, tl_max, tr_max, method,
-                                                      delay_lower) for action in corners])
-            solves += len(checks)
-            for action, vertex in zip(corners, checks, strict=True):
-                if not vertex.certified:
-                    return partial(f"the gain vertex {action.tolist()} is not certified alone",
-                                   (vertex,))
+            pending = [("vertex", (params, action, *vertex_args)) for action in corners
+                       if not np.array_equal(action, weakest)]
     return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty))
+
+
+def _solve(kind: str, args: tuple) -> Certificate:
+    """One solve of a cover on a worker: a cell (``"cell"``) or a gain vertex alone."""
+    return (lmi_certificate if kind == "cell" else vertex_certificate)(*args)
 
 
 def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
