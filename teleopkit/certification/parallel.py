@@ -6,12 +6,20 @@ LMI modules once (forking the caller directly can deadlock on locks its threads 
 number of workers is ``os.cpu_count()`` unless the environment variable ``TELEOPKIT_WORKERS``
 sets it (``1`` solves in this process). Results come back in the order of the tasks, so a cover
 is the same whatever the number of workers.
+
+A worker starts by importing the caller's main module, as every non-fork start of
+:mod:`multiprocessing` does, so a script must keep its work under
+``if __name__ == "__main__":``. A script file without that guard would run again in each worker;
+its solves run in the calling process instead, with a warning. From a notebook or the
+interpreter prompt nothing is re-run.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -38,6 +46,17 @@ def workers() -> int:
     return max(1, count)
 
 
+def _main_is_guarded() -> bool:
+    """Whether the main module can be imported by a worker without running the caller's work."""
+    path = getattr(sys.modules.get("__main__"), "__file__", None)
+    if path is None:  # an interpreter prompt or a notebook: nothing is re-run
+        return True
+    try:
+        return "__main__" in open(path, encoding="utf-8", errors="replace").read()
+    except OSError:
+        return False
+
+
 def _pool(count: int) -> Executor:
     if count not in _POOL:
         context = multiprocessing.get_context("forkserver")
@@ -62,6 +81,11 @@ def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]]) -> li
         The results, in task order.
     """
     count = min(workers(), len(tasks))
+    if count > 1 and not _main_is_guarded():
+        warnings.warn("LMI solves run in one process: the main script has no "
+                      "'if __name__ == \"__main__\":' guard, which worker processes need",
+                      RuntimeWarning, stacklevel=2)
+        count = 1
     if count <= 1 or "forkserver" not in multiprocessing.get_all_start_methods():
         return [solve(*task) for task in tasks]
     return list(_pool(count).map(solve, *zip(*tasks, strict=True)))

@@ -1,0 +1,54 @@
+"""LMI solves on the local cores: same answers in task order, and safe from unguarded scripts."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from teleopkit.certification.parallel import map_solves, workers
+
+SCRIPT = """
+import os
+from teleopkit.certification.parallel import map_solves
+print("ran", os.getpid(), flush=True)
+{guard}print(map_solves(pow, [(2, 3), (3, 2), (5, 1)]))
+"""
+
+
+def _run(tmp_path, guard: str) -> subprocess.CompletedProcess:
+    path = tmp_path / "script.py"
+    path.write_text(textwrap.dedent(SCRIPT.format(guard=guard)))
+    return subprocess.run([sys.executable, "-W", "always", str(path)], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"},
+                          check=False)
+
+
+def test_results_come_back_in_task_order():
+    assert map_solves(pow, [(2, k) for k in range(7)]) == [2**k for k in range(7)]
+
+
+def test_an_unguarded_script_solves_in_its_own_process_and_runs_once(tmp_path):
+    done = _run(tmp_path, "")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("ran") == 1 and "[8, 9, 5]" in done.stdout
+    assert "no 'if __name__" in done.stderr
+
+
+def test_a_guarded_script_uses_the_workers(tmp_path):
+    done = _run(tmp_path, 'if __name__ == "__main__":\n    ')
+    assert done.returncode == 0, done.stderr
+    assert "[8, 9, 5]" in done.stdout and "RuntimeWarning" not in done.stderr
+    # each worker imports the guarded main module once, as __mp_main__, without its work
+    assert done.stdout.count("ran") == 3
+
+
+def test_the_worker_count_is_read_from_the_environment(monkeypatch):
+    monkeypatch.setenv("TELEOPKIT_WORKERS", "3")
+    assert workers() == 3
+    monkeypatch.setenv("TELEOPKIT_WORKERS", "many")
+    with pytest.raises(ValueError, match="TELEOPKIT_WORKERS"):
+        workers()
