@@ -153,8 +153,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                              for name in methods_for(method, variation)])
 
 
-def default_certificate(params: TeleoperatorParams | None = None,
-                        delay_bound: float = 1.0) -> GainCertificate:
+def default_certificate(params: TeleoperatorParams | None = None, delay_bound: float = 1.0,
+                        variation: GainVariation | str = "frozen") -> GainCertificate:
     """Closed-form certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
 
     The box itself is not certified (at ``K_r = 50`` it needs ``B_r >= 125`` for 1 s delays);
@@ -167,12 +167,16 @@ def default_certificate(params: TeleoperatorParams | None = None,
         Teleoperator; the paper's by default.
     delay_bound : float
         ``T_l* = T_r*`` in seconds.
+    variation : GainVariation or str
+        The gain class: ``"frozen"`` by default, or a scheduled class (``"scheduled:L"``,
+        ``"tank"``), which covers what a tuner does with the gains.
 
     Returns
     -------
     GainCertificate
-        The ``"nuno"`` certificate for frozen gains.
+        The ``"nuno"`` certificate of the class.
     """
     params = params if params is not None else paper_setup()
     box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
-    return certify_gains(params, box, delay_bound, delay_bound, method="nuno")
+    return certify_gains(params, box, delay_bound, delay_bound, method="nuno",
+                         variation=variation)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -115,7 +115,8 @@ def best_static(policies: Sequence[GainPolicy], config: FlexTeleopConfig) -> np.
 
 
 def compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: FlexTeleopConfig,
-            out: Path) -> pd.DataFrame:
+            out: Path, others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None
+            ) -> pd.DataFrame:
     """Evaluate TD3, fixed and best static gains; write the report; return the summary.
 
     Parameters
@@ -130,6 +131,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: F
         Settings (certificate, episode length).
     out : Path
         Directory of the report.
+    others : mapping, optional
+        More controllers by name, each with its own settings (another certificate).
 
     Returns
     -------
@@ -142,7 +145,10 @@ def compare(policies: Sequence[GainPolicy], scenarios: int, seed: int, config: F
     controllers: dict[str, Controller | list[Controller]] = {
         "TD3": list(policies), "fixed": ConstantGains(fixed_gains()),
         "best static": ConstantGains(best_static(policies, config))}
-    per_scenario = evaluate(controllers, scenarios, seed, config)
+    others = others or {}
+    controllers.update({name: controller for name, (controller, _) in others.items()})
+    per_scenario = evaluate(controllers, scenarios, seed, config,
+                            {name: settings for name, (_, settings) in others.items()})
     summary = save_report(per_scenario, out, baseline="best static")
     click.echo(to_markdown(summary, baseline="best static"), nl=False)
     return summary
@@ -187,16 +193,29 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios of the comparison table.")
 def reproduce_command(out: Path, scenarios: int) -> int:
-    """Paper figures and comparison table from the shipped pretrained policy (no training)."""
+    """Paper figures and comparison table from the shipped pretrained policies (no training).
+
+    The table has the paper's tuner (trained under the frozen-gain certificate, which does not
+    cover its schedules: ``covered`` is no) and the tuner trained under a scheduled class with
+    the best static gains of that class (covered).
+    """
+    from teleopkit.certification.analysis import default_certificate
     from teleopkit.plots import save_paper_figures
+    from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.evaluation import EVAL_SEED, ConstantGains, rollout
-    from teleopkit.rl.policy import GainPolicy
+    from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
 
     check_output_dir(out, "--out")
     single_thread()
     policy = GainPolicy.pretrained()
     config = env_config(None, 40.0)
-    summary = compare([policy], scenarios, EVAL_SEED, config, out)
+    covered = GainPolicy.pretrained(PRETRAINED_SCHEDULED)
+    variation = covered.metadata["gain_variation"]
+    scheduled = FlexTeleopConfig(certificate=default_certificate(variation=variation))
+    others = {f"TD3 ({variation})": (covered, scheduled),
+              f"best static ({variation})": (
+                  ConstantGains(np.asarray(covered.metadata["best_static_gains"])), scheduled)}
+    summary = compare([policy], scenarios, EVAL_SEED, config, out, others)
     runs = {"TD3": rollout(policy, 1, EVAL_SEED).to_frame(),
             "best static": rollout(ConstantGains(best_static([policy], config)), 1,
                                    EVAL_SEED).to_frame()}

@@ -16,10 +16,16 @@ import numpy as np
 if TYPE_CHECKING:
     from teleopkit.rl.networks import Actor
 
-__all__ = ["PRETRAINED", "GainPolicy"]
+__all__ = ["PRETRAINED", "PRETRAINED_SCHEDULED", "GainPolicy"]
 
 PRETRAINED = "td3_policy.npz"
-"""File name of the shipped pretrained policy in ``teleopkit/data``."""
+"""File name of the shipped pretrained policy in ``teleopkit/data``: trained under the closed
+form's frozen-gain certificate, which does not cover the schedules it plays."""
+
+PRETRAINED_SCHEDULED = "td3_scheduled_policy.npz"
+"""File name of the shipped policy trained under a scheduled class (its metadata names it),
+which covers every schedule the safety layer lets through
+(``examples/compare_certified_tuners.py``)."""
 
 
 class GainPolicy:
@@ -131,11 +137,23 @@ class GainPolicy:
                              "written by GainPolicy.save)") from None
 
     @classmethod
-    def pretrained(cls) -> GainPolicy:
-        """The small policy shipped in ``teleopkit/data`` (``examples/train_pretrained.py``)."""
+    def pretrained(cls, name: str = PRETRAINED) -> GainPolicy:
+        """A small policy shipped in ``teleopkit/data``.
+
+        Parameters
+        ----------
+        name : str
+            :data:`PRETRAINED` (``examples/train_pretrained.py``) or
+            :data:`PRETRAINED_SCHEDULED`.
+
+        Returns
+        -------
+        GainPolicy
+            The policy.
+        """
         from importlib import resources
 
-        with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED) as path:
+        with resources.as_file(resources.files("teleopkit") / "data" / name) as path:
             return cls.load(path)
 
     @property

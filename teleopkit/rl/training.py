@@ -365,7 +365,8 @@ class _Run:
 
     def _metadata(self) -> dict[str, Any]:
         """Training settings and length (rounds of training behind the policy)."""
-        return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds}
+        return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds,
+                "gain_variation": self.env.certificate.gain_variation}
 
     def policy(self) -> GainPolicy:
         """The current actor with the training settings as metadata."""
