@@ -20,7 +20,7 @@ from teleopkit.model.params import paper_setup
 from teleopkit.rl.baselines import FIXED_GAINS, best_static_gains, fixed_gains, static_cost
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import ConstantGains, evaluate, rollout, save_report
-from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
 from teleopkit.rl.td3 import TD3
 from teleopkit.safety import SafetyLayer
 from teleopkit.sim.scenarios import paper_scenarios
@@ -216,6 +216,19 @@ def test_shipped_policy_loads_and_is_small():
 
     with resources.as_file(resources.files("teleopkit") / "data" / "td3_policy.npz") as path:
         assert path.stat().st_size < 300_000
+
+
+def test_shipped_scheduled_policy_runs_covered_in_its_class():
+    policy = GainPolicy.pretrained(PRETRAINED_SCHEDULED)
+    variation = policy.metadata["gain_variation"]
+    config = FlexTeleopConfig(certificate=default_certificate(variation=variation),
+                              episode_length=1.0)
+    static = np.asarray(policy.metadata["best_static_gains"])
+    assert config.certificate.polytope.contains(static[None], tol=1e-9).all()
+    run = rollout(policy, 2, 8, config)
+    table = run.metrics()
+    assert run.unsafe_actions == 0 and table["covered"].all()
+    assert (table["certificate"] == variation).all()
 
 
 @pytest.mark.slow
