@@ -1,4 +1,4 @@
-"""Wall time of ``teleopkit certify --method lmi`` on two-joint boxes, before and after, side by side.
+"""Wall time of ``teleopkit certify --method lmi`` on two-joint boxes, before and after.
 
 Each case runs the command line in a fresh process (imports included) with the cache off, then
 once more with a cache to time a repeated question. With ``--before REV`` the same cases run on
@@ -30,7 +30,7 @@ CASES = {
 def run(source: Path, args: list[str], env: dict[str, str]) -> tuple[float, dict]:
     """Seconds and the JSON certificate of one ``teleopkit certify`` process on ``source``."""
     command = [sys.executable, "-m", "teleopkit.cli", "certify", *args, "--method", "lmi",
-               "--json", "--no-progress"]
+               "--json"]
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, check=False,
                           env={**env, "PYTHONPATH": str(source)})
@@ -47,11 +47,13 @@ def summary(certificate: dict) -> str:
 
 
 def measure(label: str, source: Path, cases: list[str], cache: bool) -> list[dict]:
+    """One row per case: wall time, answer and (with ``cache``) the time of a repeat."""
     rows = []
+    off = ["--no-cache"] if cache else []  # revisions before the cache have no such option
     with tempfile.TemporaryDirectory() as folder:
         env = {**os.environ, "TELEOPKIT_CACHE": folder}
         for case in cases:
-            seconds, cert = run(source, [*CASES[case], "--no-cache"], env)
+            seconds, cert = run(source, [*CASES[case], *off], env)
             row = {"version": label, "case": " ".join(CASES[case]), "seconds": seconds,
                    "answer": summary(cert)}
             if cache:

@@ -4,4 +4,5 @@ import sys
 
 from teleopkit.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # LMI worker processes import this module again
+    sys.exit(main())
