@@ -372,6 +372,8 @@ def vertex_margin(params: TeleoperatorParams, action: np.ndarray, method: str = 
                 break
         else:  # evenly spaced inside the bracket
             points = np.linspace(low, high, count + 2)[1:-1]
+        _log.info("limiting vertex margin in [%.4g, %.4g] s: trying %s s", low, high,
+                  ", ".join(f"{h:.4g}" for h in points))
         results = map_solves(vertex_certificate, [(params, action, h, h, method, delay_lower)
                                                   for h in points])
         certified = [h for h, cert in zip(points, results, strict=True) if cert.certified]
