@@ -291,7 +291,8 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
     are smallest too.
 
     The LMI margin of any one gain bounds the margin of every set that contains it, so this is
-    an upper limit of the set's constant-gain margin (a bisection: about 35 s for two joints).
+    an upper limit of the set's constant-gain margin (:func:`vertex_margin`: about 35 s for two
+    joints on one core).
 
     Parameters
     ----------
@@ -390,8 +391,8 @@ def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str
                  delay_lower: tuple[float, float] = NO_LOWER) -> CoverMargin:
     """Largest common delay bound ``T* = T_l* = T_r*`` certified for every constant gain of a set.
 
-    The frozen LMI margin of the gain vertex that limits the closed form, alone (a bisection,
-    :func:`~teleopkit.certification.lmi.lmi_delay_margin`), gives an upper limit ``L``; covers
+    The frozen LMI margin of the gain vertex that limits the closed form, alone (a section
+    search, :func:`vertex_margin`), gives an upper limit ``L``; covers
     (:func:`cover_certificate`) are then tried at ``shrink L, shrink^2 L, ...`` and the first
     certified bound is the margin.
 
