@@ -9,10 +9,10 @@ conservative on a wide cell but close to the frozen certificate on a narrow one.
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
 spent. The cells of one level of the split are solved together on the local cores
-(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell), beside the
-corner the closed form finds weakest, alone; once the split has failed as many cells as the set
-has vertices, the other vertices are checked alone with the next level: a vertex that no LMI
-certifies ends the search at once.
+(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell); if it fails,
+the corner the closed form finds weakest is solved alone beside the first split, and once the
+split has failed as many cells as the set has vertices, the other vertices are checked alone
+with the next level: a vertex that no LMI certifies ends the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -166,11 +166,11 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
                      tuple(empty))
 
-    # the corner the closed form finds weakest is solved alone beside the first cell: when no
-    # LMI certifies it, nothing containing it is certified, and the search ends at once
+    # once the whole set fails, the corner the closed form finds weakest is solved alone beside
+    # the first split: when no LMI certifies it, nothing containing it is, and the search ends
     weakest = corners[int(np.argmin(nuno_joint_margins(params, corners).min(axis=1)))]
     vertex_args = (tl_max, tr_max, method, delay_lower)
-    pending = [("vertex", (params, weakest, *vertex_args))]
+    pending: list[tuple[str, tuple]] = []
     wave = [(corners.min(axis=0), corners.max(axis=0))]
     while wave:
         todo = []
@@ -205,7 +205,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                                "further", (cert,))
             failures += 1
             wave.extend(_halves(*box))
-        if wave and not vertices_checked and failures >= len(corners):
+        if failures == 1 and wave:
+            pending = [("vertex", (params, weakest, *vertex_args))]
+        elif wave and not vertices_checked and failures >= len(corners):
             # splitting has cost as much as checking the other vertices: one that fails alone
             # would keep it going to the budget; they are solved with the next level
             vertices_checked = True
