@@ -7,6 +7,7 @@ from pathlib import Path
 ORDER = (
     "plot_simulate.py",
     "plot_certify.py",
+    "plot_scheduled_gains.py",
     "plot_methods_vs_spectrum.py",
     "plot_delay_trace.py",
     "plot_gymnasium.py",
