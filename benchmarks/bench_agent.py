@@ -16,6 +16,11 @@ Rows:
   projection, and the projection alone by the compiled kernel and by the cvxpy + Clarabel
   reference (:meth:`SafetyLayer.project_qp`); p50 and p99 over ``--calls`` calls (the
   reference over 500).
+- **projection by gain class**: the layer of each certificate class of the default box on a
+  cycle of 64 random raw gains, the layer's run-time state kept between calls: ``frozen``
+  (the closed-form polytope), ``scheduled:2`` (the coupled set of common shape, cone, box and
+  the budget's floor, which it updates) and ``tank`` (the same with the tank's floor), and the
+  tank's measurement of the state (remote energy and proven dissipation), once per period.
 """
 
 from __future__ import annotations
@@ -29,10 +34,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from teleopkit.certification.analysis import default_certificate
 from teleopkit.rl.env import FlexTeleopVectorEnv
 from teleopkit.rl.networks import Critic
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
+from teleopkit.safety import SafetyLayer
+from teleopkit.sim import Simulator, paper_scenarios
 
 OBS, ACT = 14, 4
 
@@ -145,6 +153,23 @@ def latency_rows(env, calls: int) -> list[tuple[str, float, float]]:
     ]
 
 
+def class_rows(calls: int) -> list[tuple[str, float, float]]:
+    raws = np.random.default_rng(0).uniform([1, 1, 1, 1], [50, 50, 150, 150], (64, 4))
+    state = Simulator(paper_scenarios(0, batch=1)).state
+    rows = []
+    for variation in ("frozen", "scheduled:2", "tank"):
+        layer = SafetyLayer.from_certificate(default_certificate(variation=variation))
+        layer.reset()
+        layer.observe(state)
+        step = iter(range(10**9))
+        rows.append((f"projection, {variation} class",
+                     *percentiles(lambda layer=layer, step=step: layer.project(
+                         raws[next(step) % len(raws)]), calls)))
+    rows.append(("tank: measuring the state (once a period)",
+                 *percentiles(lambda: layer.observe(state), calls // 10)))
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--updates", type=int, default=300)
@@ -160,7 +185,7 @@ def main() -> None:
     print(f"{'stable-baselines3':<40} {sb3_rate(args.updates):>10.1f}")
     print()
     print(f"{'latency, one sample':<40} {'p50 us':>10} {'p99 us':>10}")
-    for name, p50, p99 in latency_rows(env, args.calls):
+    for name, p50, p99 in [*latency_rows(env, args.calls), *class_rows(args.calls)]:
         print(f"{name:<40} {p50:>10.1f} {p99:>10.1f}")
     print(f"load average {os.getloadavg()[0]:.2f}")
 
