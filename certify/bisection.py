@@ -181,11 +181,11 @@ def max_delay_certificate(
     system: System,
     method: str = "auto",
     mu: float | None = None,
+    lower: float | Sequence[float] = 0.0,
     *,
     weights: float | Sequence[float] = 1.0,
     h_max: float = 1e3,
     rtol: float = 1e-3,
-    lower: float | Sequence[float] = 0.0,
     channels: str = "auto",
 ) -> Certificate:
     """Largest certified delay bound by bisection, with its certificate.
@@ -199,6 +199,9 @@ def max_delay_certificate(
         and ``io`` and keeps the larger bound).
     mu : float or None, optional
         Delay class as in :func:`certify_delay`.
+    lower : float or sequence of float, optional
+        Lower bound of each delay (default 0): the certificate is for
+        ``lower_i <= tau_i(t) <= s * weights[i]``.
     weights : float or sequence of float, optional
         Relative delay bounds: the certificate is for ``h_i = s * weights[i]`` and ``s`` is
         maximised (default: one common bound ``h``).
@@ -206,9 +209,6 @@ def max_delay_certificate(
         Largest scale tried; returned if it is certified.
     rtol : float, optional
         Relative width at which the bisection stops.
-    lower : float or sequence of float, optional
-        Lower bound of each delay (default 0): the certificate is for
-        ``lower_i <= tau_i(t) <= s * weights[i]``.
     channels : str, optional
         ``"auto"`` (default: both channel forms where they differ, the larger bound kept),
         ``"reduced"`` or ``"full"`` (:mod:`certify.channels`).
@@ -235,11 +235,11 @@ def max_delay(
     system: System,
     method: str = "auto",
     mu: float | None = None,
+    lower: float | Sequence[float] = 0.0,
     *,
     weights: float | Sequence[float] = 1.0,
     h_max: float = 1e3,
     rtol: float = 1e-3,
-    lower: float | Sequence[float] = 0.0,
     channels: str = "auto",
 ) -> float:
     """Largest common delay bound ``h`` certified for every delay (``lower <= tau_i(t) <= h``).
@@ -254,6 +254,8 @@ def max_delay(
     mu : float or None, optional
         ``None``: time-varying delays with unknown derivative; ``0.0``: constant delays;
         ``0 < mu < 1``: ``tau_i'(t) <= mu``.
+    lower : float or sequence of float, optional
+        Lower bound of each delay (a minimum latency; default 0).
     weights : float or sequence of float, optional
         Relative delay bounds (``h_i = h * weights[i]``); default one common bound.
     h_max : float, optional
@@ -261,8 +263,6 @@ def max_delay(
     rtol : float, optional
         Relative bisection tolerance; the result is certified and within about ``rtol``
         of the method's limit.
-    lower : float or sequence of float, optional
-        Lower bound of each delay (a minimum latency; default 0).
     channels : str, optional
         Channel forms tried (:func:`max_delay_certificate`).
 
