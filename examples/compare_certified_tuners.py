@@ -28,10 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from teleopkit.certification import certify_gains
-from teleopkit.certification.analysis import DEFAULT_BOX
-from teleopkit.certification.gain_sets import GainBox
-from teleopkit.model.params import paper_setup
+from teleopkit.certification.analysis import default_certificate
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise, to_markdown
@@ -53,13 +50,6 @@ def recorded_style_trace(path: Path, seed: int = 0, duration: float = 60.0) -> P
     delay = np.clip(0.55 + walk - walk.mean() + rng.normal(0.0, 0.02, t.size) + spikes, 0.3, 1.0)
     pd.DataFrame({"t": t, "delay": delay}).to_csv(path, index=False)
     return path
-
-
-def class_config(variation: str) -> FlexTeleopConfig:
-    """The environment with the closed-form certificate of the default box for a class."""
-    certificate = certify_gains(paper_setup(), GainBox.uniform(*DEFAULT_BOX), 1.0, 1.0,
-                                "nuno", variation)
-    return FlexTeleopConfig(certificate=certificate)
 
 
 def trained(variation: str, seed: int, rounds: int, start: np.ndarray, out: Path,
@@ -88,7 +78,7 @@ def main() -> None:
     delays = ["paper", "switching:0:1:50ms", "sine:0.6:0.35:0.2", f"csv:{trace}"]
     tables = []
     for variation in args.classes:
-        config = class_config(variation)
+        config = FlexTeleopConfig(certificate=default_certificate(variation=variation))
         static = best_static_gains(config=config)
         print(f"{variation}: best static gains {np.round(static.gains, 3).tolist()}", flush=True)
         policies = [trained(variation, seed, args.rounds, static.gains, args.out, config)

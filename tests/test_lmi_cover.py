@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from certify import exact_constant_margin
+from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import certify_gains
 from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope
 from teleopkit.certification.cover import (
@@ -18,10 +18,11 @@ from teleopkit.certification.cover import (
 )
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
+    CHANNELS,
+    LMI_METHOD,
     lmi_certificate,
     lmi_delay_margin,
     vertex_certificate,
-    vertex_delay_margin,
 )
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import paper_setup
@@ -140,7 +141,8 @@ def test_two_joint_constant_gain_margin_beats_switching_and_the_closed_form():
 @pytest.mark.parametrize(("action", "guess"), [((10.0, 30.0), 1.0), ((10.0, 30.0), 0.05),
                                                ((5.0, 60.0), 10.0)])
 def test_the_parallel_vertex_margin_agrees_with_a_bisection(one_joint, action, guess):
-    bisected = vertex_delay_margin(one_joint, np.array(action), rtol=0.01)
+    systems = PolytopicDelaySystem(tuple(rest_systems(one_joint, np.array(action))), "frozen")
+    bisected = max_delay(systems, LMI_METHOD, rtol=0.01, channels=CHANNELS)
     sectioned = vertex_margin(one_joint, np.array(action), guess=guess, rtol=0.01)
     assert sectioned == pytest.approx(bisected, rel=0.021)
     assert vertex_certificate(one_joint, np.array(action), sectioned, sectioned).certified

@@ -24,7 +24,7 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
 __all__ = ["ASSUMPTIONS", "RATIO_CAVEAT", "certify_closed_form", "nuno_delay_margin",
-           "nuno_joint_margins", "nuno_polytope", "nuno_slack", "worst_vertex"]
+           "nuno_joint_margins", "nuno_polytope", "nuno_slack", "weakest_first", "worst_vertex"]
 
 ASSUMPTIONS = (
     "nonlinear teleoperator with elastic remote joints (no linearisation)",
@@ -122,6 +122,28 @@ def nuno_joint_margins(params: TeleoperatorParams, actions: np.ndarray) -> np.nd
     stiffness, damping = _gain_products(params, actions)
     with np.errstate(divide="ignore"):
         return np.where(stiffness > 0, np.sqrt(damping / stiffness), np.inf)
+
+
+def weakest_first(params: TeleoperatorParams, actions: np.ndarray) -> np.ndarray:
+    """Order of gain vectors by their closed-form margin, smallest first.
+
+    Ties (the margin is the smallest over joints) go to the gains whose other joints' margins
+    are smallest too.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    actions : ndarray, shape (V, 2 n)
+        Remote gains, one vector per row (for example the vertices of a gain set).
+
+    Returns
+    -------
+    ndarray, shape (V,)
+        Row indices, the weakest first.
+    """
+    ranks = np.sort(nuno_joint_margins(params, actions), axis=1)
+    return np.lexsort(ranks.T[::-1])
 
 
 def worst_vertex(box: GainBox) -> np.ndarray:

@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from certify import Certificate
-from teleopkit.certification.closed_form import nuno_joint_margins
+from teleopkit.certification.closed_form import nuno_joint_margins, weakest_first
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
     LMI_METHOD,
@@ -168,9 +169,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
 
     # once the whole set fails, the corner the closed form finds weakest is solved alone beside
     # the first split: when no LMI certifies it, nothing containing it is, and the search ends
-    weakest = corners[int(np.argmin(nuno_joint_margins(params, corners).min(axis=1)))]
+    weakest = corners[weakest_first(params, corners)[0]]
     vertex_args = (tl_max, tr_max, method, delay_lower)
-    pending: list[tuple[str, tuple]] = []
+    pending: list[tuple[Callable[..., Certificate], tuple]] = []
     wave = [(corners.min(axis=0), corners.max(axis=0))]
     while wave:
         todo = []
@@ -184,9 +185,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             return partial(f"budget of {budget} solves spent with {len(todo)} cells left")
         _log.info("T* = %.4g s: %d cells certified, solving %d", max(tl_max, tr_max), len(cells),
                   len(todo))
-        tasks = [("cell", (params, cell, tl_max, tr_max, "switching", method, delay_lower))
-                 for _, cell in todo]
-        solved = map_solves(_solve, [*pending, *tasks])
+        tasks = [(lmi_certificate, (params, cell, tl_max, tr_max, "switching", method,
+                                    delay_lower)) for _, cell in todo]
+        solved = map_solves(_call, [*pending, *tasks])
         checks, results = solved[:len(pending)], solved[len(pending):]
         solves += len(pending) + len(todo)
         for (_, (_, action, *_)), vertex in zip(pending, checks, strict=True):
@@ -206,19 +207,19 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             failures += 1
             wave.extend(_halves(*box))
         if failures == 1 and wave:
-            pending = [("vertex", (params, weakest, *vertex_args))]
+            pending = [(vertex_certificate, (params, weakest, *vertex_args))]
         elif wave and not vertices_checked and failures >= len(corners):
             # splitting has cost as much as checking the other vertices: one that fails alone
             # would keep it going to the budget; they are solved with the next level
             vertices_checked = True
-            pending = [("vertex", (params, action, *vertex_args)) for action in corners
+            pending = [(vertex_certificate, (params, action, *vertex_args)) for action in corners
                        if not np.array_equal(action, weakest)]
     return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty))
 
 
-def _solve(kind: str, args: tuple) -> Certificate:
-    """One solve of a cover on a worker: a cell (``"cell"``) or a gain vertex alone."""
-    return (lmi_certificate if kind == "cell" else vertex_certificate)(*args)
+def _call(solve: Callable[..., Certificate], args: tuple) -> Certificate:
+    """One solve of a cover on a worker: a cell or a gain vertex alone."""
+    return solve(*args)
 
 
 def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
@@ -292,8 +293,7 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
                     ) -> tuple[tuple[float, ...], float]:
     """The gain vertex with the smallest closed-form margin and its frozen LMI margin alone.
 
-    Ties (the margin is the smallest over joints) go to the vertex whose other joints' margins
-    are smallest too.
+    Ties go as in :func:`~teleopkit.certification.closed_form.weakest_first`.
 
     The LMI margin of any one gain bounds the margin of every set that contains it, so this is
     an upper limit of the set's constant-gain margin (:func:`vertex_margin`: about 35 s for two
@@ -325,13 +325,11 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
     corners = polytope.vertices()
     if corners.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
-    # the smallest closed-form margin, ties broken by the other joints' margins
-    ranks = np.sort(nuno_joint_margins(params, corners), axis=1)
-    index = int(np.lexsort(ranks.T[::-1])[0])
-    worst = corners[index]
+    worst = corners[weakest_first(params, corners)[0]]
+    guess = float(nuno_joint_margins(params, worst).min())
     # to 5 %: covers are tried 10 % apart below it, so a closer limit only costs cells
-    return tuple(worst.tolist()), vertex_margin(params, worst, method, delay_lower,
-                                                guess=float(ranks[index, 0]), rtol=LIMIT_RTOL)
+    return tuple(worst.tolist()), vertex_margin(params, worst, method, delay_lower, guess=guess,
+                                                rtol=LIMIT_RTOL)
 
 
 def vertex_margin(params: TeleoperatorParams, action: np.ndarray, method: str = LMI_METHOD,

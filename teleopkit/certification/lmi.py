@@ -41,8 +41,7 @@ from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["CHANNELS", "LMI_METHOD", "MAX_VERTICES", "NO_LOWER", "enumerated", "gain_names",
-           "gain_set_system", "lmi_certificate", "lmi_delay_margin", "vertex_certificate",
-           "vertex_delay_margin"]
+           "gain_set_system", "lmi_certificate", "lmi_delay_margin", "vertex_certificate"]
 
 MAX_VERTICES = 16
 """Largest enumerated polytope (gain vertices times configuration vertices) for frozen gains;
@@ -245,31 +244,3 @@ def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: f
     """
     return certify_delay(_vertex_system(params, action), [tl_max, tr_max], method,
                          lower=list(delay_lower), channels=CHANNELS)
-
-
-def vertex_delay_margin(params: TeleoperatorParams, action: np.ndarray,
-                        method: str = LMI_METHOD, rtol: float = 0.02,
-                        delay_lower: tuple[float, float] = NO_LOWER) -> float:
-    """Largest common delay bound ``T*`` certified for one constant gain vector alone.
-
-    Parameters
-    ----------
-    params : TeleoperatorParams
-        Teleoperator.
-    action : ndarray, shape (2 n,)
-        Remote gains ``[K_r..., B_r...]``.
-    method : str
-        A :data:`certify.METHODS` name.
-    rtol : float
-        Relative tolerance of the bisection.
-    delay_lower : tuple of float
-        Lower delay bounds ``(T_l_min, T_r_min)`` kept while ``T*`` grows.
-
-    Returns
-    -------
-    float
-        The margin in seconds (0 if none is certified).
-    """
-    cert = max_delay_certificate(_vertex_system(params, action), method, rtol=rtol, h_max=100.0,
-                                 lower=list(delay_lower), channels=CHANNELS)
-    return float(cert.margin or 0.0)

@@ -12,12 +12,10 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-import numpy as np
-
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation
 from teleopkit.certification.classes import parse_gain_variation as parse_variation
-from teleopkit.certification.closed_form import nuno_joint_margins, nuno_polytope
+from teleopkit.certification.closed_form import nuno_polytope, weakest_first
 from teleopkit.certification.cover import Cover, cover_margin, limiting_vertex, set_certificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
@@ -44,8 +42,7 @@ def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_m
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
     corners = GainPolytope.from_box(box).vertices()
-    weakest_first = np.argsort(nuno_joint_margins(params, corners).min(axis=1), kind="stable")
-    for action in corners[weakest_first]:
+    for action in corners[weakest_first(params, corners)]:
         if not vertex_certificate(params, action, tl_max, tr_max, method,
                                   delay_lower).certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "

@@ -179,12 +179,11 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
     """
     core = TeleopBatch(config if config is not None else FlexTeleopConfig(), scenarios)
     rng = seeding.np_random(seed)[0]
-    if delay == "paper":
-        obs = core.draw(rng)
-    else:
+    scenario = paper_scenarios(rng, scenarios, core.config.params)  # what TeleopBatch.draw draws
+    if delay != "paper":
         forward, backward = parse_delay(delay, rng)
-        drawn = paper_scenarios(rng, scenarios, core.config.params)
-        obs = core.start(replace(drawn, forward=forward, backward=backward))
+        scenario = replace(scenario, forward=forward, backward=backward)
+    obs = core.start(scenario)
     records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": []}
     parts, applied = [core.loop.simulator.initial_record()], []
     for _ in range(core.config.max_steps):
