@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import sys
+import types
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -20,6 +21,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+import api_pages  # noqa: E402  (docs/_ext)
+import reexports  # noqa: E402
 
 import teleopkit  # noqa: E402
 
@@ -31,6 +35,8 @@ version = ".".join(release.split(".")[:2])
 
 extensions = [
     "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.intersphinx",
     "sphinx.ext.mathjax",
     "sphinx-mathjax-offline",  # serves MathJax from _static/mathjax instead of a CDN
     "sphinx.ext.viewcode",
@@ -38,16 +44,42 @@ extensions = [
     "sphinx_gallery.gen_gallery",
     "sphinx_click",
     "reexports",  # docs/_ext: references to teleopkit.X / certify.X re-exports
+    "cli_page",  # docs/_ext: plain defaults and literal addresses on the command-line page
 ]
-# No intersphinx: the build machines have no internet access.
-
-templates_path: list[str] = []
+templates_path = ["_templates"]
 exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py",
                     "auto_examples/*.zip", "auto_examples/*.json", "auto_examples/*.md5",
                     "**.codeobj.json"]
 source_suffix = {".rst": "restructuredtext"}
 root_doc = "index"
 pygments_style = "sphinx"
+smartquotes = False  # keep "--json" and quotes literal: copied commands must run
+
+# -- intersphinx: links into the libraries' own docs (only where their inventory is reachable) --
+INVENTORIES = {
+    "python": "https://docs.python.org/3/",
+    "numpy": "https://numpy.org/doc/stable/",
+    "scipy": "https://docs.scipy.org/doc/scipy/",
+    "pandas": "https://pandas.pydata.org/docs/",
+    "matplotlib": "https://matplotlib.org/stable/",
+    "control": "https://python-control.readthedocs.io/en/latest/",
+    "gymnasium": "https://gymnasium.farama.org/",
+    "cvxpy": "https://www.cvxpy.org/",
+    "torch": "https://docs.pytorch.org/docs/stable/",
+}
+intersphinx_mapping = {name: (url, None) for name, url in INVENTORIES.items()
+                       if reexports.reachable(url)}
+if len(intersphinx_mapping) < len(INVENTORIES):
+    print("intersphinx: offline, no links into "
+          + ", ".join(sorted(set(INVENTORIES) - set(intersphinx_mapping))))
+
+# -- autosummary: a page per public object (docs/_templates/autosummary) ----------------------
+autosummary_generate = True
+autosummary_imported_members = False  # a re-export is documented where it is defined
+autosummary_ignore_module_all = False
+autosummary_context = {name: getattr(api_pages, name)
+                       for name in ("gallery_names", "is_package", "is_alias", "alias_doc")}
+suppress_warnings = ["config.cache"]  # the context holds a function: no cached configuration
 
 # -- autodoc / numpydoc -------------------------------------------------------------------------
 autodoc_default_options = {"member-order": "bysource"}
@@ -81,6 +113,8 @@ sphinx_gallery_conf = {
     "capture_repr": ("_repr_html_", "__repr__"),
     "ignore_repr_types": r"matplotlib\.",  # no "<matplotlib.legend.Legend ...>" outputs
     "image_scrapers": ("matplotlib",),
+    "backreferences_dir": "api/generated/backreferences",  # "Examples using this" on API pages
+    "doc_module": ("teleopkit", "certify"),
     "write_computation_times": False,
 }
 
@@ -94,3 +128,14 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_show_sourcelink = False
+
+
+def _skip_aliases(app: object, what: str, name: str, obj: object, skip: bool,
+                  options: object) -> bool | None:
+    """Type aliases (``tuple[bool, ...]``) are listed as constants, not as classes."""
+    return True if isinstance(obj, types.GenericAlias) and what == "class" else None
+
+
+def setup(app: object) -> None:
+    """Connect the configuration's event handlers."""
+    app.connect("autodoc-skip-member", _skip_aliases)  # type: ignore[attr-defined]

@@ -1,16 +1,24 @@
-"""Resolve cross-references to names re-exported at the top of a package.
+"""Names re-exported at the top of a package, and which documentation hosts are reachable.
 
 ``teleopkit.simulate`` is defined in :mod:`teleopkit.sim.simulator` and documented there, so a
 reference to ``teleopkit.simulate`` (or ``teleopkit.safety.SafetyLayer``, ``certify.max_delay``,
 or an attribute such as ``teleopkit.TraceDelay.from_csv``) finds no target. This extension looks
 the name up at build time and retries with the module where the object is defined.
+``.. reexports:: PACKAGE`` is a summary table of a package's names; :func:`reachable` tells the
+configuration which intersphinx inventories it can fetch (the build must also work offline).
 """
 
 from __future__ import annotations
 
 import importlib
+import socket
 import sys
 from typing import Any
+from urllib.parse import urlsplit
+
+from docutils import nodes
+from sphinx.util.docutils import SphinxDirective
+from sphinx.util.parsing import nested_parse_to_nodes
 
 PACKAGES = ("teleopkit", "certify")
 
@@ -43,6 +51,16 @@ def _defining_name(target: str) -> str | None:
     return None
 
 
+def reachable(url: str, timeout: float = 1.0) -> bool:
+    """Whether the host of ``url`` accepts a connection within ``timeout`` seconds."""
+    host = urlsplit(url).hostname or ""
+    try:
+        with socket.create_connection((host, 443), timeout=timeout):
+            return True
+    except OSError:
+        return False
+
+
 def _missing_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:
     if node.get("refdomain") != "py":
         return None
@@ -54,7 +72,24 @@ def _missing_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:
                                node, contnode)
 
 
+class ReexportsDirective(SphinxDirective):
+    """``.. reexports:: PACKAGE``: a summary table of the names in ``PACKAGE.__all__``."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        """The table, as the autosummary directive would render it."""
+        package = self.arguments[0]
+        names = importlib.import_module(package).__all__
+        # on the package's own page the names are relative to it (autosummary's convention)
+        prefix = "" if self.env.ref_context.get("py:module") == package else f"{package}."
+        text = "\n".join([".. autosummary::", "   :nosignatures:", "",
+                          *(f"   {prefix}{name}" for name in names)])
+        return nested_parse_to_nodes(self.state, text, source=self.get_source_info()[0])
+
+
 def setup(app: Any) -> dict[str, Any]:
-    """Register the ``missing-reference`` handler."""
+    """Register the ``missing-reference`` handler and the ``reexports`` directive."""
     app.connect("missing-reference", _missing_reference)
+    app.add_directive("reexports", ReexportsDirective)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -66,7 +66,7 @@ times the cost per solve, which the two-joint covers cannot afford."""
 
 
 def gain_names(n_joints: int) -> tuple[str, ...]:
-    """Names of the remote gains in action order, ``K_r1 ... K_rn, B_r1 ... B_rn``.
+    """Names of the remote gains in action order, ``K_r1, ..., K_rn, B_r1, ..., B_rn``.
 
     Parameters
     ----------
