@@ -54,6 +54,10 @@ source_suffix = {".rst": "restructuredtext"}
 root_doc = "index"
 pygments_style = "sphinx"
 smartquotes = False  # keep "--json" and quotes literal: copied commands must run
+# Every reference into teleopkit and certify must resolve (with -W, a broken one fails the build);
+# names of other libraries link through intersphinx when it is reachable, else stay text.
+nitpicky = True
+nitpick_ignore_regex = [(r"py:.*", r"(?!(teleopkit|certify)(\.|$)).*")]
 
 # -- intersphinx: links into the libraries' own docs (only where their inventory is reachable) --
 INVENTORIES = {
@@ -66,12 +70,15 @@ INVENTORIES = {
     "gymnasium": "https://gymnasium.farama.org/",
     "cvxpy": "https://www.cvxpy.org/",
     "torch": "https://docs.pytorch.org/docs/stable/",
+    "click": "https://click.palletsprojects.com/en/stable/",
 }
 intersphinx_mapping = {name: (url, None) for name, url in INVENTORIES.items()
                        if reexports.reachable(url)}
 if len(intersphinx_mapping) < len(INVENTORIES):
     print("intersphinx: offline, no links into "
           + ", ".join(sorted(set(INVENTORIES) - set(intersphinx_mapping))))
+# ``-b linkcheck`` checks the pages' own links, and the web ones when the web is reachable
+linkcheck_ignore = [] if intersphinx_mapping else [r"https?://"]
 
 # -- autosummary: a page per public object (docs/_templates/autosummary) ----------------------
 autosummary_generate = True
@@ -110,6 +117,7 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "show_memory": False,
     "min_reported_time": 1.0,
+    "thumbnail_size": (480, 320),
     "capture_repr": ("_repr_html_", "__repr__"),
     "ignore_repr_types": r"matplotlib\.",  # no "<matplotlib.legend.Legend ...>" outputs
     "image_scrapers": ("matplotlib",),
@@ -122,6 +130,7 @@ sphinx_gallery_conf = {
 html_theme = "pydata_sphinx_theme"
 html_title = f"teleopkit {release}"
 html_static_path = ["_static"]
+html_css_files = ["gallery.css"]  # larger tutorial thumbnails
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,

@@ -9,9 +9,9 @@ not in another. This tutorial takes the classic pair of oscillators
 
 .. math::
 
-    A(\theta) = (1 - \theta) \begin{bmatrix} -0.5 & 1 \\ -10 & -0.5 \end{bmatrix}
-              + \theta \begin{bmatrix} -0.5 & 10 \\ -1 & -0.5 \end{bmatrix},
-    \qquad x'(t) = A(\theta(t))\, x(t) - 0.05\, e_2 e_2^\top x(t - \tau(t)),
+    A(\theta) &= (1 - \theta) \begin{bmatrix} -0.5 & 1 \\ -10 & -0.5 \end{bmatrix}
+               + \theta \begin{bmatrix} -0.5 & 10 \\ -1 & -0.5 \end{bmatrix}, \\
+    x'(t) &= A(\theta(t))\, x(t) - 0.05\, e_2 e_2^\top x(t - \tau(t)),
 
 with :math:`\theta \in [0, 1]`. Every constant :math:`\theta` is stable, but the two ellipses
 the oscillators turn on are crossed: switching at the right moments pumps energy in.

@@ -7,8 +7,8 @@ cover it. The class ``scheduled:L`` does (:doc:`/theory/scheduled`): the stiffne
 of the local gains and may rise freely, its falls spend a log budget ``L`` per episode, and the
 damping may switch anywhere in the closed form's cone. Its storage ``V`` then satisfies
 ``V(t) <= exp(L) V(0)`` on the nonlinear teleoperator, for any delays up to the bound. This
-tutorial certifies the class, watches the storage along adversarial runs inside and outside it,
-and compares the shipped tuners.
+tutorial certifies the class and watches the storage along adversarial runs inside and outside
+it.
 """
 
 # %%
@@ -23,9 +23,6 @@ from teleopkit.certification.analysis import default_certificate
 from teleopkit.certification.storage import ScheduledStorage
 from teleopkit.delays import SwitchingDelay
 from teleopkit.model.params import Operator, paper_setup
-from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise
-from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
 from teleopkit.sim import Scenario, Simulator
 
 SMALL = os.environ.get("TELEOPKIT_DOCS_BUDGET", "full") == "small"
@@ -91,24 +88,5 @@ print(f"largest V/V0 inside the class: {inside.max():.3f}; outside: {outside.max
 # %%
 # Inside the class the storage only falls (a rising ``kappa`` lowers it too); with the
 # stiffness switching freely it rises far above its start, so there the storage proves nothing.
-#
-# The tuners
-# ----------
-# The shipped tuner of the paper was trained under the frozen-gain certificate, which does not
-# cover its gain switching; the shipped ``scheduled:2`` tuner runs under a certificate that
-# covers every schedule the safety layer lets through. Each row says which.
-covered = GainPolicy.pretrained(PRETRAINED_SCHEDULED)
-scheduled = FlexTeleopConfig(certificate=certificate)
-controllers = {"TD3 (frozen certificate)": GainPolicy.pretrained(),
-               "TD3 (scheduled:2)": covered,
-               "best static (scheduled:2)": ConstantGains(
-                   np.asarray(covered.metadata["best_static_gains"]))}
-per_scenario = evaluate(controllers, 4 if SMALL else 32, configs={
-    name: scheduled for name in controllers if "scheduled" in name})
-print(summarise(per_scenario)[["certificate", "covered", "cost", "rms_track", "rms_damp"]]
-      .round(4).to_string())
-
-# %%
-# Under the covering certificate the tuner stays at the best static gains of its class; the
-# paper's 18 % gain comes from switching that its certificate does not cover
-# (:doc:`/theory/scheduled` has the full comparison over training seeds and delay shapes).
+# What a tuner gains under this class, beside the others, is in
+# :doc:`/auto_examples/plot_gain_classes`.

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 __all__ = ["plot_run", "save_paper_figures", "save_run_figure"]
+
+
+_JOINT_STYLES = ("-", "--", ":", "-.")
+"""Line style of each joint where joints share a panel."""
 
 
 def _joints(table: pd.DataFrame) -> int:
@@ -36,7 +40,7 @@ def plot_run(table: pd.DataFrame, title: str = "") -> Figure:
         A figure with four panels.
     """
     n = _joints(table)
-    fig, axes = plt.subplots(4, 1, figsize=(8, 10), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(4, 1, figsize=(9.5, 10), sharex=True, layout="constrained")
     t = table["t"]
     axes[0].plot(t, table["Tl"], label=r"$T_l$ (forward)")
     axes[0].plot(t, table["Tr"], label=r"$T_r$ (backward)")
@@ -45,15 +49,16 @@ def plot_run(table: pd.DataFrame, title: str = "") -> Figure:
         line = axes[1].plot(t, table[f"theta_{i}"], label=rf"$\theta_{{r,{i}}}$")[0]
         axes[1].plot(t, table[f"ql_delayed_{i}"], "--", color=line.get_color(),
                      label=rf"$q_{{l,{i}}}(t - T_l)$")
-        axes[2].plot(t, table[f"e_track_{i}"], label=f"joint {i}")
-        axes[3].plot(t, table[f"e_damp_{i}"], label=f"joint {i}")
+        # joints stay apart where they meet: a style each, joint 1 drawn on top
+        style = {"ls": _JOINT_STYLES[(i - 1) % len(_JOINT_STYLES)], "zorder": 2 + n - i,
+                 "lw": 1.6 if i == 1 else 1.0, "label": f"joint {i}"}
+        axes[2].plot(t, table[f"e_track_{i}"], **style)
+        axes[3].plot(t, table[f"e_damp_{i}"], **style)
     axes[1].set_ylabel("position [rad]")
     axes[2].set_ylabel("tracking error [rad]")
     axes[3].set_ylabel("damping error [rad]")
     axes[3].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small", ncol=2)
+    _legends_outside(axes)
     if title:
         fig.suptitle(title)
     return fig
@@ -77,16 +82,22 @@ def save_run_figure(table: pd.DataFrame, path: str | Path, title: str = "") -> N
 
 
 def _figure(rows: int, title: str) -> tuple[Figure, list[Any]]:
-    fig, axes = plt.subplots(rows, 1, figsize=(8, 2.6 * rows + 0.6), sharex=True,
+    fig, axes = plt.subplots(rows, 1, figsize=(9.5, 2.6 * rows + 0.6), sharex=True,
                              layout="constrained", squeeze=False)
     fig.suptitle(title)
     return fig, list(axes[:, 0])
 
 
-def _finish(fig: Figure, axes: list[Any], path: Path) -> Path:
+def _legends_outside(axes: Sequence[Any]) -> None:
+    """A grid on every panel and its legend to the right of it, off the data."""
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small", ncol=2)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+                  borderaxespad=0.0)
+
+
+def _finish(fig: Figure, axes: list[Any], path: Path) -> Path:
+    _legends_outside(axes)
     axes[-1].set_xlabel("time [s]")
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -84,6 +85,9 @@ def test_certify_not_certified_names_the_violation():
     done = teleopkit("certify", "--kr", "1:50", "--br", "1:150", "--method", "nuno")
     assert done.returncode == 1
     assert "NOT CERTIFIED" in done.stdout and "joint 1 at K_r = 50, B_r = 1" in done.stdout
+    # the answer ends by saying where its gain class is explained, and that page exists
+    assert done.stdout.rstrip().endswith("(docs/certified.rst)")
+    assert (Path(__file__).resolve().parents[1] / "docs" / "certified.rst").is_file()
 
 
 @pytest.mark.parametrize(("args", "needle"), [

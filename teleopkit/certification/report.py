@@ -6,7 +6,11 @@ from collections.abc import Sequence
 
 from teleopkit.certification.certificate import GainCertificate
 
-__all__ = ["certificate_table"]
+__all__ = ["CLASSES_PAGE", "certificate_table"]
+
+CLASSES_PAGE = ('what each gain class covers, and what the safety layer enforces: the '
+                '"What is certified" page of the documentation (docs/certified.rst)')
+"""The closing line of :func:`certificate_table`."""
 
 
 def _range(pair: tuple[float, float]) -> str:
@@ -32,7 +36,7 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
     -------
     str
         A block of text: the question once, then verdict, margin, admissible set, violation and
-        assumptions per certificate.
+        assumptions per certificate, and where the gain classes are explained.
     """
     first = results[0]
     box = first.box
@@ -59,4 +63,4 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
         if cert.violation:
             lines.append(f"  violation       {cert.violation}")
         lines += [f"  assumes         {text}" for text in cert.assumptions]
-    return "\n".join(lines)
+    return "\n".join([*lines, "", CLASSES_PAGE])

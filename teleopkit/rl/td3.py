@@ -21,7 +21,7 @@ softplus, scaled and offset per coordinate so that its range covers the action b
 
     a_raw = low + (start - low) * softplus(z) / ln 2
 
-so ``z = 0`` gives ``start`` (the centre of the box unless :attr:`TD3Config.start` says
+so ``z = 0`` gives ``start`` (the centre of the box unless ``TD3Config.start`` says
 otherwise), ``z -> -inf`` the lower corner, and large ``z`` values above the upper corner (every
 point of the box is reached; the projection takes care of the rest).
 The environment projects ``a_raw`` (plus exploration noise) onto the certified polytope and the

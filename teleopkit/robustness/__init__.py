@@ -21,8 +21,9 @@ _EXPORTS = {
     "sample_polytope": "sampling",
     "SearchResult": "search",
     "SearchSpace": "adversary",
-    "search": "search",
 }
+# the search itself is teleopkit.robustness.search.search: a package attribute of that name would
+# hide the module
 
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_namespace(__name__, globals(), _EXPORTS)

@@ -2,7 +2,7 @@
 
 This is the one place where remote gains reach the plant. The environments, the evaluation and
 the campaigns step through a :class:`CertifiedLoop`, which also counts applied actions outside
-the certified set (:attr:`CertifiedLoop.unsafe_actions`, which must stay 0).
+the certified set (``CertifiedLoop.unsafe_actions``, which must stay 0).
 """
 
 from __future__ import annotations

@@ -433,7 +433,7 @@ class ScheduleLayer(SafetyLayer):
         prev : ndarray, shape (2 n,), optional
             Unused (the floor carries the history).
         floor : float
-            The step's floor on ``kappa`` (for example :attr:`last_floor` of a step).
+            The step's floor on ``kappa`` (for example ``last_floor`` of a step).
 
         Returns
         -------

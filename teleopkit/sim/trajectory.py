@@ -45,7 +45,7 @@ class StepResult:
 
     @property
     def layout(self) -> StateLayout:
-        """The layout of :attr:`state`."""
+        """The layout of ``state``."""
         return StateLayout.of(self.state)
 
     @property
