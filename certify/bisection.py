@@ -136,12 +136,14 @@ certified, bisects below the guess."""
 
 
 def _bisect(
-    problem: LMIProblem, weights: np.ndarray, guess: float, h_max: float, rtol: float
+    problem: LMIProblem, weights: np.ndarray, guess: float, h_max: float, rtol: float,
+    h_min: float = 0.0,
 ) -> Certificate:
     """Largest scale ``s <= h_max`` such that ``s * weights`` is certified (bisection).
 
     Scales start at the smallest one whose bounds reach the lower bounds (a certificate for
     ``[l, h]`` also covers every smaller upper bound, so the certified scales form an interval).
+    The search gives up (0) once the bracket is within ``h_min`` of that smallest scale.
     """
     best: Certificate | None = None
     floor = max(low / w for low, w in zip(problem.lower, weights, strict=True))
@@ -165,7 +167,7 @@ def _bisect(
         hi = min(2.0 * hi, h_max)
         cert = problem.solve(hi * weights)
     first_failure = cert
-    while hi - lo > rtol * hi and hi - floor > 1e-9 * guess:
+    while hi - lo > rtol * hi and hi - floor > max(1e-9 * guess, h_min):
         mid = 0.5 * (lo + hi)
         cert = problem.solve(mid * weights)
         if cert.certified:
@@ -187,6 +189,7 @@ def max_delay_certificate(
     h_max: float = 1e3,
     rtol: float = 1e-3,
     channels: str = "auto",
+    h_min: float = 0.0,
 ) -> Certificate:
     """Largest certified delay bound by bisection, with its certificate.
 
@@ -212,6 +215,10 @@ def max_delay_certificate(
     channels : str, optional
         ``"auto"`` (default: both channel forms where they differ, the larger bound kept),
         ``"reduced"`` or ``"full"`` (:mod:`certify.channels`).
+    h_min : float, optional
+        Smallest scale above the lower bounds worth certifying: a search that narrows below it
+        without a certified bound returns 0 (default 0: it narrows to 1e-9 of the system's time
+        scale, some thirty solves when nothing is certified).
 
     Returns
     -------
@@ -224,9 +231,11 @@ def max_delay_certificate(
     mu = check_mu(mu)
     if not (h_max > 0 and math.isfinite(h_max)) or not 0 < rtol < 1:
         raise ValueError(f"need 0 < h_max < inf and 0 < rtol < 1, got {h_max}, {rtol}")
+    if not 0 <= h_min < h_max:
+        raise ValueError(f"need 0 <= h_min < h_max, got h_min = {h_min}, h_max = {h_max}")
     low = lower_bounds(lower, poly.m)
     guess = _initial_guess(poly)
-    results = [_bisect(problem, w, guess, h_max, rtol)
+    results = [_bisect(problem, w, guess, h_max, rtol, h_min)
                for problem in _problems(poly, method, mu, low, channels)]
     return max(results, key=lambda c: c.margin or 0.0)
 
@@ -241,6 +250,7 @@ def max_delay(
     h_max: float = 1e3,
     rtol: float = 1e-3,
     channels: str = "auto",
+    h_min: float = 0.0,
 ) -> float:
     """Largest common delay bound ``h`` certified for every delay (``lower <= tau_i(t) <= h``).
 
@@ -265,6 +275,8 @@ def max_delay(
         of the method's limit.
     channels : str, optional
         Channel forms tried (:func:`max_delay_certificate`).
+    h_min : float, optional
+        Smallest bound above ``lower`` worth searching (:func:`max_delay_certificate`).
 
     Returns
     -------
@@ -272,5 +284,5 @@ def max_delay(
         The certified bound (``0.0`` if none).
     """
     cert = max_delay_certificate(system, method, mu, weights=weights, h_max=h_max, rtol=rtol,
-                                 lower=lower, channels=channels)
+                                 lower=lower, channels=channels, h_min=h_min)
     return float(cert.margin or 0.0)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from certify import Certificate
+from teleopkit.certification.cell_memo import CellMemo
 from teleopkit.certification.closed_form import nuno_joint_margins, weakest_first
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
@@ -83,6 +84,9 @@ class Cover:
         the set's bounding box, which is what makes the cells a cover.
     variation : str
         The gain class each cell's certificate covers (``"switching"`` for split cells).
+    root : tuple or None
+        The box ``(lower, upper)`` that was split (it contains the set; ``None``: the set's
+        bounding box).
     """
 
     certified: bool
@@ -93,6 +97,7 @@ class Cover:
     boxes: tuple[tuple[np.ndarray, np.ndarray] | None, ...] = ()
     empty: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
     variation: str = "switching"
+    root: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _box(lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
@@ -104,6 +109,12 @@ def _box(lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
 def _clip(polytope: GainPolytope, lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
     box = _box(lower, upper)
     return polytope.intersect(box.G, box.h, box.labels)
+
+
+def _within(inner: tuple[np.ndarray, np.ndarray], outer: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether the box ``inner`` lies in ``outer`` (to rounding of the vertex computation)."""
+    slack = 1e-9 * np.maximum(1.0, np.abs(outer[1]))
+    return bool(np.all(inner[0] >= outer[0] - slack) and np.all(inner[1] <= outer[1] + slack))
 
 
 def _ratios(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -124,7 +135,9 @@ def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.n
 
 def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                       tr_max: float, method: str = LMI_METHOD, budget: int = CELL_BUDGET,
-                      delay_lower: tuple[float, float] = NO_LOWER) -> Cover:
+                      delay_lower: tuple[float, float] = NO_LOWER,
+                      memo: CellMemo | None = None,
+                      root: tuple[np.ndarray, np.ndarray] | None = None) -> Cover:
     """Certify every constant gain of a polytope for delays up to ``(T_l*, T_r*)`` by cells.
 
     Parameters
@@ -141,6 +154,13 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         Most LMI solves to spend (vertex checks included).
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)``.
+    memo : CellMemo, optional
+        Verdicts of earlier covers of the same question, used and extended
+        (:mod:`~teleopkit.certification.cell_memo`); by default a new one.
+    root : tuple of ndarray, optional
+        The box ``(lower, upper)`` to split, containing the polytope; by default its bounding
+        box. Covers of nested sets that split the same root meet the same boxes, which is what
+        lets them share a memo.
 
     Returns
     -------
@@ -150,29 +170,37 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     Raises
     ------
     ValueError
-        If the polytope is empty or ``budget`` is not positive.
+        If the polytope is empty or outside ``root``, ``budget`` is not positive or ``memo`` is
+        for another question.
     """
     if budget < 1:
         raise ValueError(f"budget must be a positive number of solves, got {budget}")
     corners = polytope.vertices()
     if corners.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
+    memo = memo if memo is not None else CellMemo(params, (tl_max, tr_max), method, delay_lower)
+    if not memo.answers(params, (tl_max, tr_max), method, delay_lower):
+        raise ValueError("the cell memo holds verdicts of another question (plant, delay "
+                         "bounds or method)")
     solves, failures, vertices_checked = 0, 0, False
     cells: list[GainPolytope] = []
     certs: list[Certificate] = []
     boxes: list[tuple[np.ndarray, np.ndarray] | None] = []
     empty: list[tuple[np.ndarray, np.ndarray]] = []
 
+    bounding = (corners.min(axis=0), corners.max(axis=0))
+    if root is not None and not _within(bounding, root):
+        raise ValueError("the gain set reaches outside the root box of its cover")
+
     def partial(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
-                     tuple(empty))
+                     tuple(empty), root=root)
 
     # once the whole set fails, the corner the closed form finds weakest is solved alone beside
     # the first split: when no LMI certifies it, nothing containing it is, and the search ends
     weakest = corners[weakest_first(params, corners)[0]]
-    vertex_args = (tl_max, tr_max, method, delay_lower)
-    pending: list[tuple[Callable[..., Certificate], tuple]] = []
-    wave = [(corners.min(axis=0), corners.max(axis=0))]
+    checks: list[np.ndarray] = []  # gain vertices to check alone with the next level
+    wave = [bounding if root is None else root]
     while wave:
         todo = []
         for box in wave:
@@ -181,21 +209,32 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                 empty.append(box)
             else:
                 todo.append((box, cell))
-        if solves + len(pending) + len(todo) > budget:
-            return partial(f"budget of {budget} solves spent with {len(todo)} cells left")
-        _log.info("T* = %.4g s: %d cells certified, solving %d", max(tl_max, tr_max), len(cells),
-                  len(todo))
-        tasks = [(lmi_certificate, (params, cell, tl_max, tr_max, "switching", method,
-                                    delay_lower)) for _, cell in todo]
-        solved = map_solves(_call, [*pending, *tasks])
-        checks, results = solved[:len(pending)], solved[len(pending):]
-        solves += len(pending) + len(todo)
-        for (_, (_, action, *_)), vertex in zip(pending, checks, strict=True):
-            if not vertex.certified:
+        known = [memo.recall(box, cell) for box, cell in todo]
+        fresh = [k for k, cert in enumerate(known) if cert is None]
+        unchecked = [action for action in checks if memo.vertex(action) is None]
+        if solves + len(unchecked) + len(fresh) > budget:
+            return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
+        _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
+                  max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
+        solved = map_solves(_call, [
+            *((vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
+              for action in unchecked),
+            *((lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
+                                 delay_lower)) for k in fresh)])
+        solves += len(solved)
+        for action, cert in zip(unchecked, solved, strict=False):
+            memo.record_vertex(action, cert)
+        for k, cert in zip(fresh, solved[len(unchecked):], strict=True):
+            known[k] = cert
+            memo.record(*todo[k], cert)
+        for action in checks:
+            vertex = memo.vertex(action)
+            if vertex is not None and not vertex.certified:
                 return partial(f"the gain vertex {action.tolist()} is not certified alone",
                                (vertex,))
-        pending, wave = [], []
-        for (box, cell), cert in zip(todo, results, strict=True):
+        checks, wave = [], []
+        for (box, cell), cert in zip(todo, known, strict=True):
+            assert cert is not None
             if cert.certified:
                 cells.append(cell)
                 certs.append(cert)
@@ -207,14 +246,14 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             failures += 1
             wave.extend(_halves(*box))
         if failures == 1 and wave:
-            pending = [(vertex_certificate, (params, weakest, *vertex_args))]
+            checks = [weakest]
         elif wave and not vertices_checked and failures >= len(corners):
             # splitting has cost as much as checking the other vertices: one that fails alone
             # would keep it going to the budget; they are solved with the next level
             vertices_checked = True
-            pending = [(vertex_certificate, (params, action, *vertex_args)) for action in corners
-                       if not np.array_equal(action, weakest)]
-    return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty))
+            checks = [action for action in corners if not np.array_equal(action, weakest)]
+    return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty),
+                 root=root)
 
 
 def _call(solve: Callable[..., Certificate], args: tuple) -> Certificate:
@@ -225,7 +264,9 @@ def _call(solve: Callable[..., Certificate], args: tuple) -> Certificate:
 def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                     tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
                     budget: int = CELL_BUDGET,
-                    delay_lower: tuple[float, float] = NO_LOWER) -> Cover:
+                    delay_lower: tuple[float, float] = NO_LOWER,
+                    memo: CellMemo | None = None,
+                    root: tuple[np.ndarray, np.ndarray] | None = None) -> Cover:
     """Certify a gain set the cheapest sound way: one LMI, or cells for many constant gains.
 
     Parameters
@@ -246,6 +287,10 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         Most solves for a cover.
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)``.
+    memo : CellMemo, optional
+        Verdicts of earlier covers of the same question, for a cover.
+    root : tuple of ndarray, optional
+        The box a cover splits (:func:`cover_certificate`).
 
     Returns
     -------
@@ -253,7 +298,8 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         The verdict.
     """
     if variation == "frozen" and not enumerated(params, polytope):
-        return cover_certificate(params, polytope, tl_max, tr_max, method, budget, delay_lower)
+        return cover_certificate(params, polytope, tl_max, tr_max, method, budget, delay_lower,
+                                 memo, root)
     cert = lmi_certificate(params, polytope, tl_max, tr_max, variation, method, delay_lower)
     if cert.certified:
         return Cover(True, (polytope,), (cert,), 1, boxes=(None,), variation=variation)

@@ -183,7 +183,8 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
 def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
                      variation: str = "frozen", method: str = LMI_METHOD,
                      rtol: float = 0.02,
-                     delay_lower: tuple[float, float] = NO_LOWER) -> Certificate:
+                     delay_lower: tuple[float, float] = NO_LOWER, h_max: float = 100.0,
+                     h_min: float = 0.0) -> Certificate:
     """Largest common delay bound ``T* = T_l* = T_r*`` certified for the whole polytope.
 
     Parameters
@@ -200,6 +201,10 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
         Relative tolerance of the bisection.
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)`` kept while ``T*`` grows.
+    h_max : float
+        Largest bound tried (a known upper limit shortens the search).
+    h_min : float
+        Bounds less than this above the lower ones are not searched (0 if none above).
 
     Returns
     -------
@@ -209,8 +214,8 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
         switching, a lower bound of the frozen one.
     """
     system = gain_set_system(params, polytope, variation)
-    return max_delay_certificate(system, method, rtol=rtol, h_max=100.0, lower=list(delay_lower),
-                                 channels=CHANNELS)
+    return max_delay_certificate(system, method, rtol=rtol, h_max=h_max, lower=list(delay_lower),
+                                 channels=CHANNELS, h_min=h_min)
 
 
 def _vertex_system(params: TeleoperatorParams, action: np.ndarray) -> PolytopicDelaySystem:

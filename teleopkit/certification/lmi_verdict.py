@@ -12,11 +12,18 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+from teleopkit.certification.cell_memo import CellMemo
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.certification.classes import GainVariation
 from teleopkit.certification.classes import parse_gain_variation as parse_variation
 from teleopkit.certification.closed_form import nuno_polytope, weakest_first
-from teleopkit.certification.cover import Cover, cover_margin, limiting_vertex, set_certificate
+from teleopkit.certification.cover import (
+    LIMIT_RTOL,
+    Cover,
+    cover_margin,
+    limiting_vertex,
+    set_certificate,
+)
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi import (
     LMI_METHOD,
@@ -28,23 +35,30 @@ from teleopkit.certification.lmi import (
 from teleopkit.certification.proof import certificate_proof, cover_proof, verify_proof
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
-__all__ = ["MARGIN_BUDGET", "certify_lmi", "cut_polytope", "lmi_assumptions", "verify_lmi"]
+__all__ = ["MARGIN_BUDGET", "MARGIN_FLOOR", "certify_lmi", "cut_polytope", "lmi_assumptions",
+           "verify_lmi"]
 
 _log = logging.getLogger(__name__)
+
+MARGIN_FLOOR = 1e-3
+"""Delay margins (above the minimum delays) below this, in seconds, are not searched: 0."""
 
 MARGIN_BUDGET = 120
 """Most LMI solves per cover when :func:`certify_lmi` searches the margin of constant gains of
 a large certified set (two covers at most)."""
 
 
-def _lmi_violation(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                   method: str, delay_lower: tuple[float, float]) -> str:
+def _lmi_violation(params: TeleoperatorParams, box: GainBox, memo: CellMemo) -> str:
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
+    (tl_max, tr_max), method = memo.bounds, memo.method
     corners = GainPolytope.from_box(box).vertices()
     for action in corners[weakest_first(params, corners)]:
-        if not vertex_certificate(params, action, tl_max, tr_max, method,
-                                  delay_lower).certified:
+        cert = memo.vertex(action)
+        if cert is None:
+            cert = vertex_certificate(params, action, tl_max, tr_max, method, memo.delay_lower)
+            memo.record_vertex(action, cert)
+        if not cert.certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
                     f"B_r = {action[n:].tolist()} for T_l* = {tl_max:g}, T_r* = {tr_max:g}")
     return (f"LMI ({method}) infeasible for the box as a whole (every vertex is certified "
@@ -74,15 +88,17 @@ def cut_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
     return nuno_polytope(params, box, scale * tl_max, scale * tr_max)
 
 
-def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                  kind: str, method: str, steps: int, delay_lower: tuple[float, float]
-                  ) -> tuple[float, Cover | None]:
+def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: int,
+                  memo: CellMemo) -> tuple[float, Cover | None]:
     """Largest certified member of the family :func:`cut_polytope`, by its scale ``s``.
 
     Bisection on ``s`` over ``steps`` solves after the first certified member (doubling ``s``
-    up to three times when ``s = 1`` is not certified). Returns ``s`` and the member's cover
-    (``s = 1`` and ``None`` if no member was certified).
+    up to three times when ``s = 1`` is not certified); the members are nested, so their covers
+    share the verdicts of ``memo``. Returns ``s`` and the member's cover (``s = 1`` and ``None``
+    if no member was certified).
     """
+    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
+    root = (box.lower, box.upper)  # every member is split from the box: their cells line up
     covers: dict[float, Cover] = {}
 
     def certified(scale: float) -> bool:
@@ -92,7 +108,7 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_ma
         if polytope.is_empty():
             return False
         covers[scale] = set_certificate(params, polytope, tl_max, tr_max, kind, method,
-                                        delay_lower=delay_lower)
+                                        delay_lower=delay_lower, memo=memo, root=root)
         return covers[scale].certified
 
     low, high = 0.0, 1.0
@@ -141,22 +157,22 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     kind = "frozen" if variation.kind == "frozen" else "switching"
     bounds = (tl_max, tr_max)
     whole = GainPolytope.from_box(box)
+    memo = CellMemo(params, bounds, method, delay_lower)  # shared by the covers of one question
     verdict = set_certificate(params, whole, tl_max, tr_max, kind, method,
-                              delay_lower=delay_lower)
+                              delay_lower=delay_lower, memo=memo, root=(box.lower, box.upper))
     cert = verdict.certificates[-1]
     proof_details: dict[str, Any] = {}
     if verdict.certified:
         polytope, polytope_certified, violation = whole, True, None
         proof_details["proof"] = cover_proof(verdict, bounds, delay_lower)
     else:
-        scale, cover = _lmi_polytope(params, box, tl_max, tr_max, kind, method, steps,
-                                     delay_lower)
+        scale, cover = _lmi_polytope(params, box, kind, steps, memo)
         polytope = cut_polytope(params, box, tl_max, tr_max, scale)
         polytope_certified = cover is not None
         proof_details["polytope_scale"] = scale
         if cover is not None:
             proof_details["proof"] = cover_proof(cover, bounds, delay_lower)
-        violation = _lmi_violation(params, box, tl_max, tr_max, method, delay_lower)
+        violation = _lmi_violation(params, box, memo)
     known = min(bounds) if verdict.certified else 0.0
     margin, margin_details = _lmi_margin(params, whole, kind, method, known,
                                          proof_details.get("proof"), delay_lower)
@@ -226,8 +242,11 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the limiting
     vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
     """
-    def single() -> tuple[float, dict[str, Any] | None]:
-        found = lmi_delay_margin(params, whole, kind, method, delay_lower=delay_lower)
+    def single(h_max: float = 100.0) -> tuple[float, dict[str, Any] | None]:
+        if h_max <= max(delay_lower) + MARGIN_FLOOR:
+            return 0.0, None
+        found = lmi_delay_margin(params, whole, kind, method, delay_lower=delay_lower,
+                                 h_max=h_max, h_min=MARGIN_FLOOR)
         margin = float(found.margin or 0.0)
         return margin, certificate_proof(found, kind) if margin > 0 else None
 
@@ -242,7 +261,7 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
         margin = found.margin
         proof = cover_proof(found.cover, (margin, margin), delay_lower)
     else:  # no cover above what is known: the one-functional margin, or the requested bounds
-        margin, proof = single()
+        margin, proof = single(limit / (1.0 - LIMIT_RTOL))  # the limit is to LIMIT_RTOL
         if known >= margin:
             margin, proof = known, known_proof
     return margin, {"margin_limit": limit, "margin_limit_vertex": list(vertex),

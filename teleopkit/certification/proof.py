@@ -7,9 +7,10 @@ matrices, channel maps, state scaling), and the boxes of the split that miss the
 not record the linear systems: :func:`verify_proof` rebuilds them from the plant, the set and
 the boxes, so an edited plant, set, bound or matrix cannot pass.
 
-That the cells cover the set is checked too: the boxes lie in the bounding box, their interiors
-are disjoint and their volumes add up to its volume, so (being closed) they tile it, and the
-set is the union of its clippings.
+That the cells cover the set is checked too: the boxes lie in the box that was split (the set's
+bounding box, or a recorded ``root`` that contains it), their interiors are disjoint and their
+volumes add up to its volume, so (being closed) they tile it, and the set is the union of its
+clippings.
 """
 
 from __future__ import annotations
@@ -47,16 +48,20 @@ def cover_proof(cover: Cover, bounds: Sequence[float],
     Returns
     -------
     dict
-        ``bounds``, ``lower``, ``variation``, ``cells`` (box, LMI data) and ``empty`` boxes.
+        ``bounds``, ``lower``, ``variation``, ``cells`` (box, LMI data), ``empty`` boxes and,
+        when the split started from a box larger than the set's bounding box, that ``root``.
     """
     if not cover.certified:
         raise ValueError("only a certified cover has a proof")
     cells = [{"box": None if box is None else [box[0].tolist(), box[1].tolist()],
               "lmi": _lmi_data(cert)}
              for box, cert in zip(cover.boxes, cover.certificates, strict=True)]
-    return {"bounds": [float(b) for b in bounds], "lower": [float(b) for b in delay_lower],
-            "variation": cover.variation, "cells": cells,
-            "empty": [[low.tolist(), high.tolist()] for low, high in cover.empty]}
+    proof = {"bounds": [float(b) for b in bounds], "lower": [float(b) for b in delay_lower],
+             "variation": cover.variation, "cells": cells,
+             "empty": [[low.tolist(), high.tolist()] for low, high in cover.empty]}
+    if cover.root is not None:
+        proof["root"] = [cover.root[0].tolist(), cover.root[1].tolist()]
+    return proof
 
 
 def certificate_proof(cert: Certificate, variation: str) -> dict[str, Any]:
@@ -142,7 +147,8 @@ def verify_proof(params: TeleoperatorParams, polytope: GainPolytope, proof: Mapp
         if len(cells) != 1 or empty:
             raise ValueError("the certificate's LMI proof mixes the whole set with cells")
     else:
-        _check_tiling(polytope, [b for b in boxes if b is not None], [_box(b) for b in empty])
+        _check_tiling(polytope, [b for b in boxes if b is not None], [_box(b) for b in empty],
+                      _box(proof.get("root")))
     for index, (cell, box) in enumerate(zip(cells, boxes, strict=True)):
         region = polytope if box is None else _clip(polytope, box)
         if not _solution_holds(params, region, variation, cell.get("lmi"), proved, floors):
@@ -171,12 +177,23 @@ def _clip(polytope: GainPolytope, box: tuple[np.ndarray, np.ndarray]) -> GainPol
 
 
 def _check_tiling(polytope: GainPolytope, cells: list[tuple[np.ndarray, np.ndarray]],
-                  empty: list[tuple[np.ndarray, np.ndarray] | None]) -> None:
-    """The boxes tile the set's bounding box, and the empty ones miss the set."""
+                  empty: list[tuple[np.ndarray, np.ndarray] | None],
+                  root: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """The boxes tile a root box that contains the set, and the empty ones miss the set.
+
+    The root is by default the set's bounding box.
+    """
     corners = polytope.vertices()
     if corners.size == 0:
         raise ValueError("the certificate's gain polytope is empty")
     low, high = corners.min(axis=0), corners.max(axis=0)
+    if root is not None:
+        slack = 1e-9 * np.maximum(1.0, np.abs(root[1]))
+        if (root[0].shape != low.shape or np.any(low < root[0] - slack)
+                or np.any(high > root[1] + slack)):
+            raise ValueError("the root box of the certificate's LMI proof does not contain its "
+                             "gain set")
+        low, high = root
     boxes = cells + [b for b in empty if b is not None]
     wide = high - low > 1e-12 * np.maximum(1.0, np.abs(high))
 

@@ -120,9 +120,40 @@ def test_nothing_certifiable_returns_zero():
     assert cert.margin == 0.0 and not cert.certified
 
 
+def _counting_solves(monkeypatch) -> list[int]:
+    """Count the LMI solves of the searches that follow."""
+    from certify.solve import LMIProblem
+
+    count = [0]
+    solve = LMIProblem.solve
+
+    def counted(self, h):
+        count[0] += 1
+        return solve(self, h)
+
+    monkeypatch.setattr(LMIProblem, "solve", counted)
+    return count
+
+
+def test_h_min_ends_a_search_that_finds_nothing_early(monkeypatch):
+    unstable = LinearDelaySystem(np.array([[0.5]]), [np.array([[-0.1]])])
+    count = _counting_solves(monkeypatch)
+    assert max_delay_certificate(unstable, "rcc", channels="reduced").margin == 0.0
+    to_the_end, count[0] = count[0], 0
+    cert = max_delay_certificate(unstable, "rcc", channels="reduced", h_max=1.0, h_min=0.01)
+    assert cert.margin == 0.0 and not cert.certified
+    assert count[0] <= 4 + math.ceil(math.log2(1.0 / 0.01)) < to_the_end
+
+
+def test_h_min_leaves_a_found_margin_alone(benchmark_system):
+    assert max_delay(benchmark_system, "rcc", h_min=0.1) == max_delay(benchmark_system, "rcc")
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
+        ({"h_min": -0.1}, "h_min"),
+        ({"h_min": 2e3}, "h_min"),
         ({"method": "nope"}, "unknown method"),
         ({"mu": 1.0}, "mu"),
         ({"mu": -0.1}, "mu"),

@@ -1,0 +1,95 @@
+"""Covers of nested gain sets share their cells' verdicts (``CellMemo``), soundly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from teleopkit.certification.cell_memo import CellMemo
+from teleopkit.certification.cover import cover_certificate
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import LMI_METHOD, NO_LOWER
+from teleopkit.certification.proof import cover_proof, verify_proof
+
+BOUND = 1.45  # between the switching (1.33 s) and the frozen (1.55 s) margin of the box
+WHOLE = GainPolytope.from_box(GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1))
+# the box with its weakest corner (K_r = 10, B_r = 30) cut off: same bounding box, a subset
+CUT = WHOLE.intersect(np.array([[1.0, -0.1]]), np.array([6.9]), ("corner cut",))
+
+
+def _memo(params) -> CellMemo:
+    return CellMemo(params, (BOUND, BOUND), LMI_METHOD, NO_LOWER)
+
+
+def _sound(params, polytope, cover) -> None:
+    """Every cell's certificate holds, and the cover's proof checks from the plant alone."""
+    assert cover.certified and all(cert.verify() for cert in cover.certificates)
+    verify_proof(params, polytope, cover_proof(cover, (BOUND, BOUND)), (BOUND, BOUND),
+                 ("switching",))
+
+
+@pytest.fixture(scope="module")
+def fresh(one_joint):
+    """Both sets covered without a memo: the solves each costs alone."""
+    return {name: cover_certificate(one_joint, polytope, BOUND, BOUND)
+            for name, polytope in (("whole", WHOLE), ("cut", CUT))}
+
+
+def test_a_subset_reuses_the_certified_cells(one_joint, fresh):
+    memo = _memo(one_joint)
+    cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=memo)
+    cut = cover_certificate(one_joint, CUT, BOUND, BOUND, memo=memo)
+    _sound(one_joint, CUT, cut)
+    assert cut.solves < fresh["cut"].solves
+    assert len(cut.cells) == len(fresh["cut"].cells)
+
+
+def test_a_superset_skips_the_cells_that_failed(one_joint, fresh):
+    memo = _memo(one_joint)
+    cover_certificate(one_joint, CUT, BOUND, BOUND, memo=memo)
+    whole = cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=memo)
+    _sound(one_joint, WHOLE, whole)
+    assert whole.solves < fresh["whole"].solves
+
+
+def test_recall_goes_by_inclusion_only(one_joint, fresh):
+    memo = _memo(one_joint)
+    box = (np.array([5.0, 30.0]), np.array([10.0, 60.0]))  # the bounding box of both sets
+    assert memo.recall(box, CUT) is None  # nothing known yet
+    cover_certificate(one_joint, CUT, BOUND, BOUND, memo=memo)
+    assert fresh["cut"].solves > 1  # the cut as one cell failed, so the whole box fails too
+    recalled = memo.recall(box, WHOLE)
+    assert recalled is not None and not recalled.certified
+    other = (box[0], box[1] + 1.0)  # another box: no verdict carries over
+    assert memo.recall(other, WHOLE) is None
+
+
+def test_a_memo_of_another_question_is_refused(one_joint):
+    other = CellMemo(one_joint, (1.0, 1.0), LMI_METHOD, NO_LOWER)
+    with pytest.raises(ValueError, match="another question"):
+        cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=other)
+
+
+ROOT = (np.array([5.0, 30.0]), np.array([10.0, 60.0]))
+# a subset with another bounding box (K_r from 5.5): covered from the same root, its boxes line up
+STRIP = WHOLE.intersect(np.array([[-1.0, 0.0]]), np.array([-5.5]), ("K_r >= 5.5",))
+
+
+def test_sets_with_other_bounding_boxes_share_cells_split_from_one_root(one_joint):
+    fresh = cover_certificate(one_joint, STRIP, BOUND, BOUND, root=ROOT)
+    memo = _memo(one_joint)
+    cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=memo, root=ROOT)
+    strip = cover_certificate(one_joint, STRIP, BOUND, BOUND, memo=memo, root=ROOT)
+    _sound(one_joint, STRIP, strip)
+    assert strip.solves < fresh.solves
+
+
+def test_a_proof_s_root_must_contain_the_set(one_joint):
+    cover = cover_certificate(one_joint, STRIP, BOUND, BOUND, root=ROOT)
+    proof = cover_proof(cover, (BOUND, BOUND))
+    assert proof["root"] == [ROOT[0].tolist(), ROOT[1].tolist()]
+    shrunk = {**proof, "root": [[6.0, 30.0], [10.0, 60.0]]}  # misses K_r in [5.5, 6]
+    with pytest.raises(ValueError, match="root box"):
+        verify_proof(one_joint, STRIP, shrunk, (BOUND, BOUND), ("switching",))
+    with pytest.raises(ValueError, match="outside the root box"):
+        cover_certificate(one_joint, WHOLE, BOUND, BOUND, root=(ROOT[0] + 1.0, ROOT[1]))
