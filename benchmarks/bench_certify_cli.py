@@ -32,7 +32,8 @@ def run(source: Path, args: list[str], env: dict[str, str]) -> tuple[float, dict
     command = [sys.executable, "-m", "teleopkit.cli", "certify", *args, "--method", "lmi",
                "--json"]
     start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, text=True, check=False,
+    # run from the checkout measured: ``python -m`` puts the working directory first on the path
+    done = subprocess.run(command, capture_output=True, text=True, check=False, cwd=source,
                           env={**env, "PYTHONPATH": str(source)})
     elapsed = time.perf_counter() - start
     if done.returncode not in (0, 1):

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 import numpy as np
+from numba import njit
 
 from teleopkit.delays.units import UNITS, column_unit
 
@@ -55,15 +56,27 @@ def _paper_shape(t: np.ndarray) -> np.ndarray:
     """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``.
 
     The harmonics come from the angle-addition recurrence, two trigonometric evaluations per time
-    instead of two per harmonic; equal to the direct sum to about ``1e-15`` s.
+    instead of two per harmonic; equal to the direct sum to about ``1e-15`` s. Compiled: a
+    control period of one scenario samples 17 stage times, where numpy's per-call cost would
+    dominate the step.
     """
-    c1, s1 = np.cos(2.0 * np.pi * PAPER_F0 * t), np.sin(2.0 * np.pi * PAPER_F0 * t)
-    ck, sk = c1, s1
-    out = np.full(t.shape, PAPER_C0)
-    for a, b in zip(PAPER_SIN, PAPER_COS, strict=True):
-        out += a * sk + b * ck
-        ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
+    t = np.asarray(t, dtype=float)
+    out = np.empty(t.shape)
+    _paper_sum(t.reshape(-1), PAPER_SIN, PAPER_COS, out.reshape(-1))
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def _paper_sum(t: np.ndarray, sines: np.ndarray, cosines: np.ndarray,
+               out: np.ndarray) -> None:
+    omega = 2.0 * np.pi * PAPER_F0
+    for j in range(t.size):
+        c1, s1 = math.cos(omega * t[j]), math.sin(omega * t[j])
+        ck, sk, value = c1, s1, PAPER_C0
+        for k in range(sines.size):  # numba's zip takes no strict=
+            value += sines[k] * sk + cosines[k] * ck
+            ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
+        out[j] = value
 
 
 def _paper_extremes(points: int = 20001) -> tuple[float, float]:
@@ -76,7 +89,7 @@ def _paper_extremes(points: int = 20001) -> tuple[float, float]:
 
 
 PAPER_DELAY_MIN, PAPER_DELAY_MAX = _paper_extremes()
-"""Rigorous lower and upper bounds of the Fourier fit of the paper's Fig. 3, about 0.9027 s and
+"""Rigorous lower and upper bounds of the Fourier fit of the paper's Fig. 3, about 0.9029 s and
 1.0003 s (the maximum slightly above the paper's 1 s): :class:`FourierDelay` divides the fit by
 the maximum."""
 
