@@ -75,14 +75,8 @@ class CellMemo:
 
         Parameters
         ----------
-        params : TeleoperatorParams
-            Teleoperator.
-        bounds : tuple of float
-            Delay bounds ``(T_l*, T_r*)``.
-        method : str
-            LMI method.
-        delay_lower : tuple of float
-            Lower delay bounds.
+        params, bounds, method, delay_lower
+            The question, as the memo's fields.
 
         Returns
         -------
