@@ -11,9 +11,11 @@ the scripts when run by hand).
 from __future__ import annotations
 
 import os
+import socket
 import sys
 import types
 from pathlib import Path
+from urllib.parse import urlsplit
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # document the working tree even without an editable install
@@ -23,7 +25,6 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import api_pages  # noqa: E402  (docs/_ext)
-import reexports  # noqa: E402
 
 import teleopkit  # noqa: E402
 
@@ -72,8 +73,19 @@ INVENTORIES = {
     "torch": "https://docs.pytorch.org/docs/stable/",
     "click": "https://click.palletsprojects.com/en/stable/",
 }
+
+
+def _reachable(url: str, timeout: float = 1.0) -> bool:
+    """Whether the host of ``url`` accepts a connection (the build must also work offline)."""
+    try:
+        with socket.create_connection((urlsplit(url).hostname or "", 443), timeout=timeout):
+            return True
+    except OSError:
+        return False
+
+
 intersphinx_mapping = {name: (url, None) for name, url in INVENTORIES.items()
-                       if reexports.reachable(url)}
+                       if _reachable(url)}
 if len(intersphinx_mapping) < len(INVENTORIES):
     print("intersphinx: offline, no links into "
           + ", ".join(sorted(set(INVENTORIES) - set(intersphinx_mapping))))

@@ -16,8 +16,8 @@ from matplotlib.figure import Figure
 __all__ = ["plot_run", "save_paper_figures", "save_run_figure"]
 
 
-_JOINT_STYLES = ("-", "--", ":", "-.")
-"""Line style of each joint where joints share a panel."""
+_LINE_STYLES = ("-", "--", ":", "-.")
+"""Line styles of the joints (or runs) that share a panel, in order."""
 
 
 def _joints(table: pd.DataFrame) -> int:
@@ -50,7 +50,7 @@ def plot_run(table: pd.DataFrame, title: str = "") -> Figure:
         axes[1].plot(t, table[f"ql_delayed_{i}"], "--", color=line.get_color(),
                      label=rf"$q_{{l,{i}}}(t - T_l)$")
         # joints stay apart where they meet: a style each, joint 1 drawn on top
-        style = {"ls": _JOINT_STYLES[(i - 1) % len(_JOINT_STYLES)], "zorder": 2 + n - i,
+        style = {"ls": _LINE_STYLES[(i - 1) % len(_LINE_STYLES)], "zorder": 2 + n - i,
                  "lw": 1.6 if i == 1 else 1.0, "label": f"joint {i}"}
         axes[2].plot(t, table[f"e_track_{i}"], **style)
         axes[3].plot(t, table[f"e_damp_{i}"], **style)
@@ -106,8 +106,8 @@ def _finish(fig: Figure, axes: list[Any], path: Path) -> Path:
 
 def _styles(runs: Mapping[str, pd.DataFrame]) -> list[tuple[str, pd.DataFrame, str]]:
     """Name, table and line style of each run (the first solid, the others dashed/dotted)."""
-    styles = ["-", "--", ":", "-."]
-    return [(name, table, styles[i % len(styles)]) for i, (name, table) in enumerate(runs.items())]
+    return [(name, table, _LINE_STYLES[i % len(_LINE_STYLES)])
+            for i, (name, table) in enumerate(runs.items())]
 
 
 def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) -> list[Path]:

@@ -22,11 +22,11 @@ def gallery_names(fullname: str) -> str:
     Sphinx-gallery records the names a tutorial uses under the shortest import path
     (``teleopkit.simulate`` for ``teleopkit.sim.simulator.simulate``).
     """
-    module_name, _, name = fullname.rpartition(".")
     try:
-        obj = getattr(importlib.import_module(module_name), name)
+        obj = _lookup(fullname)
     except (ImportError, AttributeError, ValueError):
         return fullname
+    module_name, _, name = fullname.rpartition(".")
     parts, names = module_name.split("."), [fullname]
     for i in range(1, len(parts)):
         prefix = ".".join(parts[:i])

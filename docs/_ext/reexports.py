@@ -1,22 +1,18 @@
-"""Names re-exported at the top of a package, and which documentation hosts are reachable.
+"""Names re-exported at the top of a package.
 
 ``teleopkit.simulate`` is defined in :mod:`teleopkit.sim.simulator` and documented there, so a
 reference to ``teleopkit.simulate`` (or ``teleopkit.safety.SafetyLayer``, ``certify.max_delay``,
 or an attribute such as ``teleopkit.TraceDelay.from_csv``) finds no target. This extension looks
 the name up at build time and retries with the module where the object is defined; a short name
 that a docstring takes from another module (``FACTORS``) resolves when one object of the
-packages has it.
-``.. reexports:: PACKAGE`` is a summary table of a package's names; :func:`reachable` tells the
-configuration which intersphinx inventories it can fetch (the build must also work offline).
+packages has it. ``.. reexports:: PACKAGE`` is a summary table of a package's names.
 """
 
 from __future__ import annotations
 
 import importlib
-import socket
 import sys
 from typing import Any
-from urllib.parse import urlsplit
 
 from docutils import nodes
 from sphinx.util.docutils import SphinxDirective
@@ -52,16 +48,6 @@ def _defining_names(target: str) -> list[str]:
                 and parts[i] in getattr(submodule, "__all__", ())
                 and getattr(submodule, parts[i], None) is obj]
     return []
-
-
-def reachable(url: str, timeout: float = 1.0) -> bool:
-    """Whether the host of ``url`` accepts a connection within ``timeout`` seconds."""
-    host = urlsplit(url).hostname or ""
-    try:
-        with socket.create_connection((host, 443), timeout=timeout):
-            return True
-    except OSError:
-        return False
 
 
 def _unique_suffix(domain: Any, target: str) -> str | None:

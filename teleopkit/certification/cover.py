@@ -31,7 +31,7 @@ import numpy as np
 from certify import Certificate
 from teleopkit.certification.cell_memo import CellMemo
 from teleopkit.certification.closed_form import nuno_joint_margins, weakest_first
-from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
 from teleopkit.certification.lmi import (
     LMI_METHOD,
     NO_LOWER,
@@ -111,12 +111,6 @@ def _clip(polytope: GainPolytope, lower: np.ndarray, upper: np.ndarray) -> GainP
     return polytope.intersect(box.G, box.h, box.labels)
 
 
-def _within(inner: tuple[np.ndarray, np.ndarray], outer: tuple[np.ndarray, np.ndarray]) -> bool:
-    """Whether the box ``inner`` lies in ``outer`` (to rounding of the vertex computation)."""
-    slack = 1e-9 * np.maximum(1.0, np.abs(outer[1]))
-    return bool(np.all(inner[0] >= outer[0] - slack) and np.all(inner[1] <= outer[1] + slack))
-
-
 def _ratios(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """``max / min`` of each gain range (``inf`` for a range that starts at zero)."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -189,7 +183,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     empty: list[tuple[np.ndarray, np.ndarray]] = []
 
     bounding = (corners.min(axis=0), corners.max(axis=0))
-    if root is not None and not _within(bounding, root):
+    if root is not None and not box_within(bounding, root):
         raise ValueError("the gain set reaches outside the root box of its cover")
 
     def partial(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
@@ -222,7 +216,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             *((lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
                                  delay_lower)) for k in fresh)])
         solves += len(solved)
-        for action, cert in zip(unchecked, solved, strict=False):
+        for action, cert in zip(unchecked, solved[:len(unchecked)], strict=True):
             memo.record_vertex(action, cert)
         for k, cert in zip(fresh, solved[len(unchecked):], strict=True):
             known[k] = cert

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GainBox", "GainPolytope", "parse_range"]
+__all__ = ["GainBox", "GainPolytope", "box_within", "parse_range"]
 
 
 def parse_range(text: str, name: str) -> tuple[float, float]:
@@ -43,6 +43,24 @@ def parse_range(text: str, name: str) -> tuple[float, float]:
     low, high = values
     _check_range(name, low, high)
     return low, high
+
+
+def box_within(inner: tuple[np.ndarray, np.ndarray], outer: tuple[np.ndarray, np.ndarray]
+               ) -> bool:
+    """Whether the box ``inner`` lies in ``outer``, to the rounding of computed vertices.
+
+    Parameters
+    ----------
+    inner, outer : tuple of ndarray
+        Boxes ``(lower, upper)`` of gain vectors, of one shape.
+
+    Returns
+    -------
+    bool
+        ``True`` if every bound of ``inner`` is within ``outer`` (up to 1e-9 relative).
+    """
+    slack = 1e-9 * np.maximum(1.0, np.abs(outer[1]))
+    return bool(np.all(inner[0] >= outer[0] - slack) and np.all(inner[1] <= outer[1] + slack))
 
 
 def _check_range(name: str, low: float, high: float) -> None:

@@ -23,7 +23,7 @@ import numpy as np
 
 from certify import Certificate
 from teleopkit.certification.cover import Cover
-from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
 from teleopkit.certification.lmi import NO_LOWER, gain_set_system
 from teleopkit.model.params import TeleoperatorParams
 
@@ -188,9 +188,7 @@ def _check_tiling(polytope: GainPolytope, cells: list[tuple[np.ndarray, np.ndarr
         raise ValueError("the certificate's gain polytope is empty")
     low, high = corners.min(axis=0), corners.max(axis=0)
     if root is not None:
-        slack = 1e-9 * np.maximum(1.0, np.abs(root[1]))
-        if (root[0].shape != low.shape or np.any(low < root[0] - slack)
-                or np.any(high > root[1] + slack)):
+        if root[0].shape != low.shape or not box_within((low, high), root):
             raise ValueError("the root box of the certificate's LMI proof does not contain its "
                              "gain set")
         low, high = root
