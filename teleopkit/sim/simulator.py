@@ -11,6 +11,7 @@ shares the model; the batch axis comes first in every array.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -26,7 +27,12 @@ from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
 from teleopkit.sim.timing import periods as whole_periods
 from teleopkit.sim.trajectory import StepResult, Trajectory
 
-__all__ = ["Simulator", "check_gains", "simulate", "simulate_trajectory"]
+__all__ = ["LOOKAHEAD_VALUES", "Simulator", "check_gains", "simulate", "simulate_trajectory"]
+
+LOOKAHEAD_VALUES = 65536
+"""Delay values per channel :class:`Simulator` samples ahead of a short advance (half a megabyte
+each: a whole 40 s episode of one scenario at the default step, a few periods of a large
+batch)."""
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -92,6 +98,7 @@ class Simulator:
         self.backend = backend
         self.layout = StateLayout(scenario.params.n_joints)
         self._model = kernel.kernel_model(scenario.params)
+        self._inputs: _Inputs | None = None
         self.reset()
 
     @property
@@ -190,27 +197,58 @@ class Simulator:
             The state, delayed signals and delays at the end of each period.
         """
         gains = check_gains(gains, self.n_joints)
-        gains = np.ascontiguousarray(np.broadcast_to(
+        gains = np.broadcast_to(
             gains if gains.ndim == 3 else gains.reshape(1, -1, gains.shape[-1]),
-            (gains.shape[0] if gains.ndim == 3 else 1, self.batch, 2 * self.n_joints)))
+            (gains.shape[0] if gains.ndim == 3 else 1, self.batch, 2 * self.n_joints))
+        result = self._empty_record(gains.shape[0])
+        self._integrate(gains, result)
+        return result
+
+    def _stage_inputs(self, periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Times ``(S,)``, delays ``(2, S, B)`` and unit reference ``(S, n)`` at the stage times of
+        the next ``periods`` periods (every half step, ``S = 2 P substeps + 1``).
+
+        The inputs are functions of time alone, so they are sampled ahead, up to
+        :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
+        one scenario would otherwise spend most of its time in the per-call cost of sampling.
+        A profile that cannot be sampled ahead (a trace that ends) is sampled as needed.
+        """
+        rows = 2 * periods * self.substeps + 1
+        cached = self._inputs
+        if cached is None or not cached.covers(self.scenario, self._step, rows):
+            ahead = max(rows, LOOKAHEAD_VALUES // self.batch)
+            try:
+                cached = _Inputs.sample(self, ahead)
+            except ValueError:
+                cached = _Inputs.sample(self, rows)
+            self._inputs = cached
+        first = 2 * (self._step - cached.step)
+        window = slice(first, first + rows)
+        return cached.times[window], cached.delays[:, window], cached.unit[window]
+
+    def _empty_record(self, periods: int) -> StepResult:
+        """Uninitialised arrays for ``periods`` recorded times."""
+        return StepResult(np.empty(periods), np.empty((periods, self.batch, self.layout.size)),
+                          np.empty((periods, self.batch, 2, self.n_joints)),
+                          np.empty((periods, self.batch, 2)))
+
+    def _integrate(self, gains: np.ndarray, out: StepResult) -> None:
+        """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
-        stages = self._step + 0.5 * np.arange(2 * periods * self.substeps + 1)
-        delays, unit = self._sample(stages * self.dt)
+        times, delays, unit = self._stage_inputs(periods)
         ends = slice(2 * self.substeps, None, 2 * self.substeps)
-        end_delays = np.moveaxis(delays[:, ends], 0, -1).copy()
+        out.t[:] = times[ends]
+        out.delays[:] = np.moveaxis(delays[:, ends], 0, -1)
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
-            state, delayed = self._numpy.advance(np.moveaxis(delays, 0, -1),
-                                                     reference_gains[None] * unit[:, None], gains)
+            out.state[:], out.delayed[:] = self._numpy.advance(
+                np.moveaxis(delays, 0, -1), reference_gains[None] * unit[:, None], gains)
         else:
-            state = np.empty((periods, self.batch, self.layout.size))
-            delayed = np.empty((periods, self.batch, 2, self.n_joints))
-            delays /= self.dt  # the kernel takes them in steps
+            delays = delays / self.dt  # the kernel takes them in steps
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
-                            self.substeps, delays, unit, reference_gains, gains, self._model,
-                            state, delayed)
+                           self.substeps, delays, unit, reference_gains,
+                           np.ascontiguousarray(gains), self._model, out.state, out.delayed)
         self._step += periods * self.substeps
-        return StepResult(stages[ends] * self.dt, state, delayed, end_delays)
 
     def record_bytes(self, periods: int) -> int:
         """Memory a :meth:`run` of ``periods`` control periods records, in bytes.
@@ -272,16 +310,48 @@ class Simulator:
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
         gains = check_gains(gains, self.n_joints)
-        if gains.ndim < 3:
+        constant = gains.ndim < 3
+        if constant:
             gains = np.broadcast_to(gains, (periods, self.batch, gains.shape[-1]))
         if gains.shape[0] != periods:
             raise ValueError(f"gain schedule has {gains.shape[0]} periods, the run needs {periods}")
         self.reset()
-        parts = [self.initial_record()]
+        record = self._empty_record(periods + 1)  # filled in place: no copies of the run
+        first = self.initial_record()
+        for name in ("t", "state", "delayed", "delays"):
+            getattr(record, name)[0] = getattr(first, name)[0]
         per_chunk = max(1, round(chunk / self.control_period))
         for start in range(0, periods, per_chunk):
-            parts.append(self.advance(gains[start:start + per_chunk]))
-        return Trajectory.join(parts, gains)
+            stop = min(start + per_chunk, periods)
+            self._integrate(gains[start:stop], StepResult(
+                *(getattr(record, name)[1 + start:1 + stop]
+                  for name in ("t", "state", "delayed", "delays"))))
+        in_force = (np.broadcast_to(gains[:1], (periods + 1, *gains.shape[1:])) if constant
+                    else np.concatenate([gains[:1], gains]))
+        return Trajectory(record.t, record.state, record.delayed, record.delays, in_force)
+
+
+@dataclass(frozen=True)
+class _Inputs:
+    """Delays and operator reference sampled at the stage times from grid step ``step`` on."""
+
+    scenario: Scenario
+    step: int
+    times: np.ndarray
+    delays: np.ndarray
+    unit: np.ndarray
+
+    @classmethod
+    def sample(cls, simulator: Simulator, rows: int) -> _Inputs:
+        """``rows`` stage times from the simulator's current step."""
+        times = (simulator._step + 0.5 * np.arange(rows)) * simulator.dt
+        delays, unit = simulator._sample(times)
+        return cls(simulator.scenario, simulator._step, times, delays, unit)
+
+    def covers(self, scenario: Scenario, step: int, rows: int) -> bool:
+        """Whether these are ``scenario``'s inputs for ``rows`` stage times from ``step``."""
+        return (scenario is self.scenario and step >= self.step
+                and 2 * (step - self.step) + rows <= self.times.size)
 
 
 def available_memory() -> int:

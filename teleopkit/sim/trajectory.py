@@ -78,7 +78,8 @@ class Trajectory(StepResult):
     delays : ndarray, shape (P, B, 2)
         ``T_l(t)`` and ``T_r(t)`` in seconds.
     gains : ndarray, shape (P, B, 2 n)
-        Remote gains in force at each time (row 0 holds the first period's gains).
+        Remote gains in force at each time (row 0 holds the first period's gains); a read-only
+        broadcast view when they were constant.
     """
 
     gains: np.ndarray

@@ -1,0 +1,67 @@
+"""The simulator's bookkeeping: inputs sampled ahead, records filled in place."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pytest
+
+from teleopkit import ConstantDelay, Simulator, paper_scenarios
+from teleopkit.delays.profiles import check_delays
+
+GAINS = np.array([12.0, 9.0, 35.0, 28.0])
+
+
+@pytest.mark.parametrize("backend", ["compiled", "numpy"])
+def test_period_by_period_equals_a_run(backend):
+    scenario = paper_scenarios(3, batch=2)
+    run = Simulator(scenario, backend=backend).run(0.3, GAINS)
+    sim = Simulator(scenario, backend=backend)
+    steps = [sim.advance(GAINS) for _ in range(30)]
+    np.testing.assert_array_equal(run.state[1:], np.concatenate([s.state for s in steps]))
+    np.testing.assert_array_equal(run.delayed[1:], np.concatenate([s.delayed for s in steps]))
+    np.testing.assert_array_equal(run.delays[1:], np.concatenate([s.delays for s in steps]))
+    np.testing.assert_array_equal(run.t[1:], np.concatenate([s.t for s in steps]))
+
+
+def test_a_new_scenario_is_sampled_afresh():
+    first, second = paper_scenarios(0, batch=1), paper_scenarios(1, batch=1)
+    sim = Simulator(first)
+    sim.advance(GAINS)  # samples the first scenario's inputs ahead
+    sim.scenario = second
+    sim.reset()
+    np.testing.assert_array_equal(sim.advance(GAINS).state, Simulator(second).advance(GAINS).state)
+
+
+@dataclass(frozen=True)
+class _Ending:
+    """A delay of 0.1 s that cannot be sampled after 0.2 s."""
+
+    bound: float = 0.1
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        t = np.atleast_1d(t)
+        if t.max() > 0.2 + 1e-12:
+            raise ValueError("_Ending has no delays after 0.2 s")
+        return check_delays("_Ending", np.full((t.size, 1), 0.1), self.bound)
+
+
+def test_a_profile_that_cannot_be_sampled_ahead_runs_to_its_end():
+    scenario = replace(paper_scenarios(0, batch=1), forward=_Ending())
+    sim = Simulator(scenario)
+    sim.advance(np.broadcast_to(GAINS, (20, 1, 4)))
+    assert sim.time == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="after 0.2 s"):
+        sim.advance(GAINS)
+
+
+def test_constant_gains_are_recorded_without_a_copy_per_period():
+    scenario = replace(paper_scenarios(0, batch=3), forward=ConstantDelay(0.05),
+                       backward=ConstantDelay(0.05))
+    run = Simulator(scenario).run(0.5, GAINS)
+    assert run.gains.shape == (51, 3, 4)
+    np.testing.assert_array_equal(run.gains, np.broadcast_to(GAINS, (51, 3, 4)))
+    assert not run.gains.flags.writeable
+    schedule = np.broadcast_to(GAINS, (50, 3, 4)).copy()
+    assert Simulator(scenario).run(0.5, schedule).gains.flags.writeable
