@@ -205,8 +205,9 @@ class Simulator:
         return result
 
     def _stage_inputs(self, periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Times ``(S,)``, delays ``(2, S, B)`` and unit reference ``(S, n)`` at the stage times of
-        the next ``periods`` periods (every half step, ``S = 2 P substeps + 1``).
+        """Times, delays and unit reference at the next ``periods`` periods' stage times.
+
+        Shapes ``(S,)``, ``(2, S, B)`` and ``(S, n)``: every half step, ``S = 2 P substeps + 1``.
 
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
