@@ -77,7 +77,9 @@ class _TwoPath(nn.Module):
 
     def __init__(self, low: np.ndarray, high: np.ndarray) -> None:
         super().__init__()
-        self.critic = Critic(OBS, low, high, torch.Generator().manual_seed(0), TD3Config())
+        config = TD3Config()
+        self.critic = Critic(OBS, low, high, torch.Generator().manual_seed(0),
+                             config.hidden_state, config.hidden_action, config.hidden_merged)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.critic(x[:, :OBS], x[:, OBS:])[:, None]

@@ -185,14 +185,15 @@ def test_gradients_are_clipped(layer):
     agent = make_agent(layer, config=config)
     buffer = filled_buffer(layer)
     batch = buffer.sample(32)
-    critic = agent.critics[0]
-    before = parameters(critic)
+    before = [parameters(critic) for critic in agent.critics]
     agent.update(batch)
     # Adam's first step moves each weight by lr * sign(g) whatever the norm; clipping shows
-    # up in the stored gradient, whose norm is at most the threshold.
-    norm = torch.sqrt(sum(p.grad.pow(2).sum() for p in critic.parameters()))
-    assert float(norm) <= 1e-3 * (1 + 1e-5)
-    assert not torch.equal(parameters(critic), before)
+    # up in the stored gradients: each critic's, far above the threshold unclipped, is clipped
+    # by its own norm to the threshold (a joint clip would leave each below it).
+    for critic, old in zip(agent.critics, before, strict=True):
+        norm = torch.sqrt(sum(p.grad.pow(2).sum() for p in critic.parameters()))
+        assert float(norm) == pytest.approx(1e-3, rel=1e-3)
+        assert not torch.equal(parameters(critic), old)
 
 
 def test_seeded_agents_are_reproducible(layer):
