@@ -34,6 +34,8 @@ JITCDDE_TOLERANCES = (1e-6, 1e-9)
 """jitcdde ``rtol, atol``: the loosest tried (1e-5/1e-8, 1e-6/1e-9, ...) below 1e-5 rad."""
 PERIODS = 25
 """Control periods per ``Simulator.advance`` call in the throughput runs."""
+RUN_SECONDS = 4.0
+"""Length of the ``Simulator.run`` throughput runs (a 40 s run of 4096 scenarios records 3 GB)."""
 EPISODE = 40.0
 FINE_DT = 0.000125
 """Step of the accuracy reference (20 times finer than the default; RK4 error falls as dt^4)."""
@@ -62,6 +64,14 @@ def throughput(backend: str, batch: int, periods: int, repeat: int, dt: float = 
     sim = Simulator(paper_scenarios(0, batch=batch), dt=dt, backend=backend)
     gains = np.broadcast_to(GAINS, (periods, batch, GAINS.size))
     return periods * batch / best_time(lambda: sim.advance(gains), repeat)
+
+
+def run_throughput(batch: int, repeat: int, dt: float) -> float:
+    """Env-steps per second through ``Simulator.run`` of :data:`RUN_SECONDS` (what a user calls:
+    reset, then every period recorded)."""
+    sim = Simulator(paper_scenarios(0, batch=batch), dt=dt)
+    return round(RUN_SECONDS / sim.control_period) * batch / best_time(
+        lambda: sim.run(RUN_SECONDS, GAINS), repeat)
 
 
 def positions(trajectory_state: np.ndarray) -> np.ndarray:
@@ -169,7 +179,7 @@ def memory_per_scenario(batch: int, periods: int, dt: float) -> int:
     sim = Simulator(paper_scenarios(0, batch=batch), dt=dt)
     samples = 2 * periods * sim.substeps + 1
     inputs = samples * 2 * 8 + periods * 4 * 8  # delays of both channels, gains
-    outputs = periods * (16 + 4 + 2) * 8  # state, delayed signals, delays
+    outputs = periods * (sim.layout.size + 4 + 2) * 8  # state, delayed signals, delays
     return (sim._x.nbytes + sim._hist.nbytes + sim._initial.nbytes) // batch + inputs + outputs
 
 
@@ -191,6 +201,9 @@ def main() -> None:
             for name, dt in columns.items()}
         rows[f"env-steps/s, batch {batch}"]["numpy 2.5 ms"] = throughput(
             "numpy", batch, 1 if args.quick else 2, 1)
+    for batch in BATCHES:
+        rows[f"Simulator.run env-steps/s, batch {batch}"] = {
+            name: run_throughput(batch, 3, dt) for name, dt in columns.items()}
 
     t_fine, fine = run_compiled(FINE_DT)
     rows["40 s episode, s"] = {}
@@ -214,13 +227,14 @@ def main() -> None:
     jit_rate = (len(t_fine) - 1) / rows["40 s episode, s"]["jitcdde"]
     for batch in BATCHES:  # one scenario at a time: its rate does not grow with the batch
         rows[f"env-steps/s, batch {batch}"]["jitcdde"] = jit_rate
+        rows[f"Simulator.run env-steps/s, batch {batch}"]["jitcdde"] = jit_rate
 
     table = pd.DataFrame(rows).T[[*columns, "numpy 2.5 ms", "jitcdde"]]
     accurate = f"compiled {ACCURATE_DT * 1e3:g} ms"
     speedup = table[accurate] / table["jitcdde"]
     speedup["40 s episode, s"] = 1.0 / speedup["40 s episode, s"]
     table[f"speed-up of {accurate} over jitcdde"] = speedup.where(
-        speedup.index.str.startswith(("env-steps", "40 s")))
+        speedup.index.str.startswith(("env-steps", "Simulator.run", "40 s")))
     pd.set_option("display.float_format", lambda v: f"{v:.3g}")
     print(f"paper model, K_r = 10, B_r = 30; {PERIODS} periods per advance call; errors: positions "
           f"over {EPISODE:g} s (G = 1, delay scale 1) against dt = {FINE_DT * 1e3:g} ms; jitcdde "
