@@ -29,10 +29,9 @@ from teleopkit.sim.trajectory import StepResult, Trajectory
 
 __all__ = ["LOOKAHEAD_VALUES", "Simulator", "check_gains", "simulate", "simulate_trajectory"]
 
-LOOKAHEAD_VALUES = 65536
-"""Delay values per channel :class:`Simulator` samples ahead of a short advance (half a megabyte
-each: a whole 40 s episode of one scenario at the default step, a few periods of a large
-batch)."""
+LOOKAHEAD_VALUES = 16384
+"""Delay values per channel :class:`Simulator` samples ahead of a short advance: 10 s of one
+scenario at the default step (some 0.7 MB of inputs), a period or two of a large batch."""
 
 if TYPE_CHECKING:
     import pandas as pd
