@@ -17,6 +17,7 @@ from teleopkit.delays import (
     parse_delay,
 )
 from teleopkit.delays.history import ChannelHistory
+from teleopkit.delays.profiles import PAPER_C0, PAPER_COS, PAPER_F0, PAPER_SIN
 
 DT = 0.01
 
@@ -139,3 +140,13 @@ def test_delay_specs():
     assert forward.seed != backward.seed
     forward, _ = parse_delay("paper", np.random.default_rng(0))
     assert 0.5 <= float(forward.scale[0]) <= 1.0
+
+
+@pytest.mark.parametrize("size", [1, 255, 256, 257, 5000])
+def test_fourier_delay_is_the_direct_sum_of_its_harmonics(size):
+    t = np.random.default_rng(size).uniform(-3.0, 200.0, size)
+    angles = 2.0 * np.pi * PAPER_F0 * np.outer(t, np.arange(1, PAPER_SIN.size + 1))
+    direct = PAPER_C0 + np.sin(angles) @ PAPER_SIN + np.cos(angles) @ PAPER_COS
+    sampled = FourierDelay(np.array([1.0, 0.5])).sample(t)
+    np.testing.assert_allclose(sampled[:, 0], direct / PAPER_DELAY_MAX, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(sampled[:, 1], 0.5 * direct / PAPER_DELAY_MAX, rtol=0, atol=1e-14)
