@@ -204,10 +204,12 @@ class Operator:
         ndarray, shape (S, B, n)
             Reference joint angles ``q_h``.
         """
-        t = np.asarray(t, dtype=float)[:, None, None]
-        shape = (np.array(self.amplitudes) * np.sin(np.array(self.frequencies) * t
-                 + np.array(self.phases)) * np.exp(-np.array(self.decays) * t))
-        return np.asarray(gains, dtype=float)[None] * shape
+        t = np.asarray(t, dtype=float)[None, :]
+        # joints by times, so that the ufuncs run along the long axis
+        amplitude, frequency, phase, decay = (np.array(values)[:, None] for values in (
+            self.amplitudes, self.frequencies, self.phases, self.decays))
+        shape = amplitude * np.sin(frequency * t + phase) * np.exp(-decay * t)
+        return np.asarray(gains, dtype=float)[None] * shape.T[:, None, :]
 
 
 @dataclass(frozen=True)
