@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from teleopkit import FourierDelay, Scenario, Simulator, paper_scenarios
-from teleopkit.delays.profiles import PAPER_C0, PAPER_COS, PAPER_DELAY_MAX, PAPER_F0, PAPER_SIN
+from teleopkit.delays.paper_fit import PAPER_C0, PAPER_COS, PAPER_DELAY_MAX, PAPER_F0, PAPER_SIN
 from teleopkit.model.dynamics import inertia_coefficients
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 

@@ -17,7 +17,7 @@ from teleopkit.delays import (
     parse_delay,
 )
 from teleopkit.delays.history import ChannelHistory
-from teleopkit.delays.profiles import PAPER_C0, PAPER_COS, PAPER_F0, PAPER_SIN
+from teleopkit.delays.paper_fit import PAPER_C0, PAPER_COS, PAPER_F0, PAPER_SIN
 
 DT = 0.01
 

@@ -1,7 +1,8 @@
 """Communication delays: profiles, adversarial profiles, combinators and the channel history.
 
 A delay profile is a frozen dataclass with a declared upper bound and a method ``sample(t)``
-(:mod:`teleopkit.delays.profiles`). :mod:`~teleopkit.delays.adversarial` holds the fast-switching
+(:mod:`teleopkit.delays.profiles`; the paper's Fourier fit is in
+:mod:`~teleopkit.delays.paper_fit`). :mod:`~teleopkit.delays.adversarial` holds the fast-switching
 profiles of falsification searches, :mod:`~teleopkit.delays.combinators` scales and stacks
 profiles into batches, :mod:`~teleopkit.delays.spec` reads the short text specs of the command
 line, and :mod:`~teleopkit.delays.history` stores a sender's samples and reads them back at
@@ -11,7 +12,7 @@ line, and :mod:`~teleopkit.delays.history` stores a sender's samples and reads t
 from teleopkit._lazy import lazy_namespace
 
 _EXPORTS = {
-    "PAPER_DELAY_MAX": "profiles",
+    "PAPER_DELAY_MAX": "paper_fit",
     "ConstantDelay": "profiles",
     "DelayProfile": "profiles",
     "FourierDelay": "profiles",

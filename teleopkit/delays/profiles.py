@@ -20,13 +20,11 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 import numpy as np
-from numba import njit
 
+from teleopkit.delays.paper_fit import PAPER_DELAY_MAX, PAPER_DELAY_MIN, paper_shape
 from teleopkit.delays.units import UNITS, column_unit
 
 __all__ = [
-    "PAPER_DELAY_MAX",
-    "PAPER_DELAY_MIN",
     "ConstantDelay",
     "DelayProfile",
     "FourierDelay",
@@ -37,80 +35,6 @@ __all__ = [
     "declared_bound",
     "delay_floor",
 ]
-
-PAPER_C0 = 0.9613462407597305
-PAPER_F0 = 0.24299065416927243
-PAPER_SIN = np.array([
-    -0.02000659, -0.02349457, 0.00067474, 0.00159032, 0.00129016, -0.00135477, -0.00022001,
-    0.00097632, 0.00021585, 0.00014519, -0.00020833, -0.00056968, -0.00031181, 0.00016964,
-    0.0003376, -0.00022124,
-])
-PAPER_COS = np.array([
-    -0.02556397, 0.00393168, -0.0052079, 0.00220769, 0.00300956, 0.00160663, -0.00018929,
-    -0.00031848, -0.00019025, -0.00022222, -0.00010147, 0.00019351, -0.00030343, 0.0001225,
-    0.00015061, 0.00039704,
-])
-
-
-def _paper_shape(t: np.ndarray) -> np.ndarray:
-    """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``.
-
-    The harmonics come from the angle-addition recurrence, two trigonometric evaluations per time
-    instead of two per harmonic; equal to the direct sum to about ``1e-15`` s. Compiled: a
-    control period of one scenario samples 17 stage times, where numpy's per-call cost would
-    dominate the step.
-    """
-    t = np.asarray(t, dtype=float)
-    out = np.empty(t.shape)
-    _paper_sum(t.reshape(-1), PAPER_SIN, PAPER_COS, out.reshape(-1))
-    return out
-
-
-_SUM_BLOCK = 256
-"""Times per block of :func:`_paper_sum`."""
-
-
-@njit(cache=True, error_model="numpy")
-def _paper_sum(t: np.ndarray, sines: np.ndarray, cosines: np.ndarray,
-               out: np.ndarray) -> None:
-    """``out = C0 + sum_k (a_k sin + b_k cos)(2 pi k f0 t)`` by the angle-addition recurrence.
-
-    The recurrence runs over harmonics in the outer loop and over a block of times in the inner
-    one: the times are independent, so the inner loop vectorises instead of waiting on the
-    recurrence's chain (the same operations in the same order per time as a loop over times).
-    """
-    omega = 2.0 * np.pi * PAPER_F0
-    cos1, sin1 = np.empty(_SUM_BLOCK), np.empty(_SUM_BLOCK)  # the fundamental
-    ck, sk = np.empty(_SUM_BLOCK), np.empty(_SUM_BLOCK)  # harmonic k
-    for lo in range(0, t.size, _SUM_BLOCK):
-        width = min(_SUM_BLOCK, t.size - lo)
-        for j in range(width):
-            cos1[j], sin1[j] = math.cos(omega * t[lo + j]), math.sin(omega * t[lo + j])
-            ck[j], sk[j] = cos1[j], sin1[j]
-            out[lo + j] = PAPER_C0
-        for k in range(sines.size):
-            a, b = sines[k], cosines[k]
-            for j in range(width):
-                out[lo + j] += a * sk[j] + b * ck[j]
-                c, s = ck[j], sk[j]
-                ck[j] = c * cos1[j] - s * sin1[j]
-                sk[j] = s * cos1[j] + c * sin1[j]
-
-
-def _paper_extremes(points: int = 20001) -> tuple[float, float]:
-    """Rigorous bounds of ``y(t)``: grid extremes widened by the slope bound times half a step."""
-    t = np.linspace(0.0, 1.0 / PAPER_F0, points)
-    harmonics = np.arange(1, PAPER_SIN.size + 1)
-    slope = 2.0 * np.pi * PAPER_F0 * float(harmonics @ (np.abs(PAPER_SIN) + np.abs(PAPER_COS)))
-    shape, slack = _paper_shape(t), slope * (t[1] - t[0]) / 2.0
-    return float(shape.min()) - slack, float(shape.max()) + slack
-
-
-PAPER_DELAY_MIN, PAPER_DELAY_MAX = _paper_extremes()
-"""Rigorous lower and upper bounds of the Fourier fit of the paper's Fig. 3, about 0.9029 s and
-1.0003 s (the maximum slightly above the paper's 1 s): :class:`FourierDelay` divides the fit by
-the maximum."""
-
 
 class DelayProfile(Protocol):
     """What the simulator needs from a delay profile."""
@@ -245,8 +169,9 @@ class FourierDelay:
 
     ``y`` is the 16-harmonic fit of the paper's Fig. 3 (range about 0.903-1.000 s); the fit
     overshoots the paper's bound ``T* = 1 s`` by 0.03 % (its maximum is at most
-    :data:`PAPER_DELAY_MAX`, 1.00031 s), so it is divided by that rigorous maximum: with
-    ``scale <= 1`` the profile never exceeds 1 s, the bound certificates are computed for.
+    :data:`~teleopkit.delays.paper_fit.PAPER_DELAY_MAX`, 1.00031 s), so it is divided by that
+    rigorous maximum: with ``scale <= 1`` the profile never exceeds 1 s, the bound certificates
+    are computed for.
 
     Parameters
     ----------
@@ -290,7 +215,7 @@ class FourierDelay:
         ValueError
             If a delay is negative, non-finite or above ``bound``.
         """
-        shape = _paper_shape(_times(t)) / PAPER_DELAY_MAX
+        shape = paper_shape(_times(t)) / PAPER_DELAY_MAX
         scale = np.asarray(self.scale)
         # The shape is positive and the scales non-negative, so the extremes of the products are
         # those of the extreme shape values: checking two rows checks every value.

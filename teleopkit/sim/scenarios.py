@@ -10,13 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from teleopkit.delays.profiles import (
-    PAPER_DELAY_MAX,
-    PAPER_DELAY_MIN,
-    ConstantDelay,
-    DelayProfile,
-    FourierDelay,
-)
+from teleopkit.delays.paper_fit import PAPER_DELAY_MAX, PAPER_DELAY_MIN
+from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
 __all__ = ["PAPER_DELAY_BOUND", "PAPER_DELAY_FLOOR", "PAPER_SCALES", "Scenario", "paper_scenarios",
