@@ -24,6 +24,7 @@ from teleopkit.model.params import (
     PDGains,
     TeleoperatorParams,
 )
+from teleopkit.sim.kernel import LANES
 
 
 def _three_link() -> TeleoperatorParams:
@@ -49,6 +50,12 @@ def test_paper_scenarios_with_changing_gains(rng):
     scenario = paper_scenarios(rng, batch=3)
     gains = rng.uniform(1.0, 50.0, size=(60, 3, 4))
     _compare(scenario, gains, 60)
+
+
+def test_a_last_block_of_one_scenario(rng):
+    # 33 scenarios: a full block of 32 and a block of one, which takes the scalar path
+    scenario = paper_scenarios(rng, batch=LANES + 1)
+    _compare(scenario, rng.uniform(1.0, 50.0, size=(20, LANES + 1, 4)), 20)
 
 
 def test_three_links_wall_saturation_and_fast_switching(rng):
