@@ -17,7 +17,7 @@ from teleopkit.delays import (
     parse_delay,
 )
 from teleopkit.delays.history import ChannelHistory
-from teleopkit.delays.paper_fit import PAPER_C0, PAPER_COS, PAPER_F0, PAPER_SIN
+from teleopkit.delays.paper_fit import PAPER_C0, PAPER_COS, PAPER_F0, PAPER_SIN, paper_shape
 
 DT = 0.01
 
@@ -150,3 +150,15 @@ def test_fourier_delay_is_the_direct_sum_of_its_harmonics(size):
     sampled = FourierDelay(np.array([1.0, 0.5])).sample(t)
     np.testing.assert_allclose(sampled[:, 0], direct / PAPER_DELAY_MAX, rtol=0, atol=1e-14)
     np.testing.assert_allclose(sampled[:, 1], 0.5 * direct / PAPER_DELAY_MAX, rtol=0, atol=1e-14)
+
+
+def test_the_remembered_paper_shape_is_never_stale():
+    t = np.linspace(0.0, 9.0, 700)
+    first = paper_shape(t)
+    first[:] = 0.0  # the caller's copy: the remembered one is untouched
+    again = paper_shape(t)
+    assert np.all(again > 0.9)
+    t[3] += 1.0  # the same array with other times
+    moved = paper_shape(t)
+    np.testing.assert_array_equal(np.delete(moved, 3), np.delete(again, 3))
+    assert moved[3] == paper_shape(t[3:4])[0] != again[3]

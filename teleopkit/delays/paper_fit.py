@@ -40,7 +40,8 @@ def paper_shape(t: np.ndarray) -> np.ndarray:
     """The paper's unscaled delay ``y(t)`` (seconds) at the times ``t``.
 
     The harmonics come from the angle-addition recurrence, two trigonometric evaluations per time
-    instead of two per harmonic, compiled; equal to the direct sum to about ``1e-15`` s.
+    instead of two per harmonic, compiled; equal to the direct sum to about ``1e-15`` s. The
+    last evaluation is remembered: a simulator samples both channels at the same times.
 
     Parameters
     ----------
@@ -52,10 +53,19 @@ def paper_shape(t: np.ndarray) -> np.ndarray:
     ndarray
         ``y(t)``, the shape of ``t``.
     """
+    global _LAST
     t = np.asarray(t, dtype=float)
+    last = _LAST  # one read: another thread may replace it meanwhile
+    if last is not None and last[0].shape == t.shape and np.array_equal(last[0], t):
+        return last[1].copy()
     out = np.empty(t.shape)
     _paper_sum(t.reshape(-1), PAPER_SIN, PAPER_COS, out.reshape(-1))
+    _LAST = (t.copy(), out.copy())
     return out
+
+
+_LAST: tuple[np.ndarray, np.ndarray] | None = None
+"""The last times given to :func:`paper_shape` and ``y`` at them (a pure function's memo)."""
 
 
 _SUM_BLOCK = 256
