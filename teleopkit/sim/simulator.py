@@ -211,7 +211,8 @@ class Simulator:
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
         one scenario would otherwise spend most of its time in the per-call cost of sampling.
-        A profile that cannot be sampled ahead (a trace that ends) is sampled as needed.
+        A profile that cannot be sampled that far ahead (one that raises past some time) is
+        sampled as needed, so that its error comes when the run reaches that time.
         """
         rows = 2 * periods * self.substeps + 1
         cached = self._inputs
