@@ -11,7 +11,7 @@ shares the model; the batch axis comes first in every array.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -219,13 +219,18 @@ class Simulator:
         if cached is None or not cached.covers(self.scenario, self._step, rows):
             ahead = max(rows, LOOKAHEAD_VALUES // self.batch)
             try:
-                cached = _Inputs.sample(self, ahead)
+                cached = self._sample_from_here(ahead)
             except ValueError:
-                cached = _Inputs.sample(self, rows)
+                cached = self._sample_from_here(rows)
             self._inputs = cached
         first = 2 * (self._step - cached.step)
         window = slice(first, first + rows)
         return cached.times[window], cached.delays[:, window], cached.unit[window]
+
+    def _sample_from_here(self, rows: int) -> _Inputs:
+        """The inputs at ``rows`` stage times (half steps) from the current step."""
+        times = (self._step + 0.5 * np.arange(rows)) * self.dt
+        return _Inputs(self.scenario, self._step, times, *self._sample(times))
 
     def _empty_record(self, periods: int) -> StepResult:
         """Uninitialised arrays for ``periods`` recorded times."""
@@ -318,15 +323,13 @@ class Simulator:
             raise ValueError(f"gain schedule has {gains.shape[0]} periods, the run needs {periods}")
         self.reset()
         record = self._empty_record(periods + 1)  # filled in place: no copies of the run
-        first = self.initial_record()
-        for name in ("t", "state", "delayed", "delays"):
-            getattr(record, name)[0] = getattr(first, name)[0]
+        first, initial = record.rows(slice(0, 1)), self.initial_record()
+        for field in fields(StepResult):
+            getattr(first, field.name)[:] = getattr(initial, field.name)
         per_chunk = max(1, round(chunk / self.control_period))
         for start in range(0, periods, per_chunk):
             stop = min(start + per_chunk, periods)
-            self._integrate(gains[start:stop], StepResult(
-                *(getattr(record, name)[1 + start:1 + stop]
-                  for name in ("t", "state", "delayed", "delays"))))
+            self._integrate(gains[start:stop], record.rows(slice(1 + start, 1 + stop)))
         in_force = (np.broadcast_to(gains[:1], (periods + 1, *gains.shape[1:])) if constant
                     else np.concatenate([gains[:1], gains]))
         return Trajectory(record.t, record.state, record.delayed, record.delays, in_force)
@@ -341,13 +344,6 @@ class _Inputs:
     times: np.ndarray
     delays: np.ndarray
     unit: np.ndarray
-
-    @classmethod
-    def sample(cls, simulator: Simulator, rows: int) -> _Inputs:
-        """``rows`` stage times from the simulator's current step."""
-        times = (simulator._step + 0.5 * np.arange(rows)) * simulator.dt
-        delays, unit = simulator._sample(times)
-        return cls(simulator.scenario, simulator._step, times, delays, unit)
 
     def covers(self, scenario: Scenario, step: int, rows: int) -> bool:
         """Whether these are ``scenario``'s inputs for ``rows`` stage times from ``step``."""

@@ -43,6 +43,22 @@ class StepResult:
     delayed: np.ndarray
     delays: np.ndarray
 
+    def rows(self, index: slice) -> StepResult:
+        """The times ``index`` of this record, as views.
+
+        Parameters
+        ----------
+        index : slice
+            Rows to keep.
+
+        Returns
+        -------
+        StepResult
+            Views of ``t``, ``state``, ``delayed`` and ``delays`` (writing to them writes here).
+        """
+        return StepResult(self.t[index], self.state[index], self.delayed[index],
+                          self.delays[index])
+
     @property
     def layout(self) -> StateLayout:
         """The layout of ``state``."""
