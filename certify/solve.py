@@ -16,14 +16,44 @@ from certify.check import RTOL, residuals
 from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_bounds
 from certify.system import PolytopicDelaySystem
 
-__all__ = ["LMIProblem"]
+__all__ = ["LMIProblem", "set_solver_threads", "solver_threads"]
 
 SOLVER = "CLARABEL"
+_SETTINGS: dict[str, int] = {}
 MARGIN_CAP = 1e-4
 """Margin ``t`` beyond which the solver stops improving. A clearly feasible problem then has a
 large optimal face, whose analytic centre interior-point methods reach in few iterations;
 without the cap the Finsler slack drifts along an unbounded optimal face and the solver may
 end ``optimal_inaccurate`` although the LMIs are comfortably feasible."""
+
+
+def set_solver_threads(threads: int) -> None:
+    """Cap the threads of Clarabel's linear algebra in this process (0: Clarabel's default).
+
+    Parameters
+    ----------
+    threads : int
+        Most threads per solve; processes that solve side by side should share the cores.
+
+    Raises
+    ------
+    ValueError
+        If ``threads`` is negative.
+    """
+    if threads < 0:
+        raise ValueError(f"threads must be 0 (automatic) or positive, got {threads}")
+    _SETTINGS["max_threads"] = int(threads)
+
+
+def solver_threads() -> int:
+    """Thread cap of Clarabel's linear algebra in this process (0: Clarabel's default).
+
+    Returns
+    -------
+    int
+        The cap set by :func:`set_solver_threads`.
+    """
+    return _SETTINGS.get("max_threads", 0)
 
 
 def _system_text(system: PolytopicDelaySystem) -> str:
@@ -83,7 +113,7 @@ class _Form:
         try:
             with warnings.catch_warnings():  # an inaccurate status is reported, not warned
                 warnings.simplefilter("ignore", UserWarning)
-                self.problem.solve(solver=SOLVER)
+                self.problem.solve(solver=SOLVER, **_SETTINGS)
             status = str(self.problem.status)
         except cp.SolverError as exc:
             status = f"solver_error: {exc}"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import os
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import pytest
 from teleopkit.certification.parallel import map_solves, workers
 
 SCRIPT = """
+import ast
 import os
 from teleopkit.certification.parallel import map_solves
 print("ran", os.getpid(), flush=True)
@@ -44,6 +46,34 @@ def test_a_guarded_script_uses_the_workers(tmp_path):
     assert "[8, 9, 5]" in done.stdout and "RuntimeWarning" not in done.stderr
     # each worker imports the guarded main module once, as __mp_main__, without its work
     assert done.stdout.count("ran") == 3
+
+
+THREADS_SCRIPT = """
+from threadpoolctl import threadpool_info
+
+from certify.solve import solver_threads
+
+def blas_threads(_):
+    return max(pool["num_threads"] for pool in threadpool_info()), solver_threads()
+
+if __name__ == "__main__":
+    from teleopkit.certification.parallel import map_solves
+    print(map_solves(blas_threads, [(k,) for k in range(4)]))
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers to share it")
+def test_each_worker_gets_its_share_of_the_cores_for_blas(tmp_path):
+    # two workers each running BLAS and Clarabel on every core solved a level of cells no
+    # faster than one process
+    path = tmp_path / "threads.py"
+    path.write_text(THREADS_SCRIPT)
+    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    assert done.returncode == 0, done.stderr
+    share = (os.cpu_count() or 1) // 2
+    for blas, solver in ast.literal_eval(done.stdout):
+        assert 1 <= blas <= share and solver == share
 
 
 def test_the_worker_count_is_read_from_the_environment(monkeypatch):

@@ -7,6 +7,12 @@ number of workers is ``os.cpu_count()`` unless the environment variable ``TELEOP
 sets it (``1`` solves in this process). Results come back in the order of the tasks, so a cover
 is the same whatever the number of workers.
 
+Each worker gets its share of the cores (``os.cpu_count() // workers`` threads) for BLAS,
+through :mod:`threadpoolctl`, and for Clarabel's linear algebra. Both default to every core, and
+on the small dense blocks of these LMIs threads cost more than they give: with two workers
+each running two BLAS and two solver threads on two cores, a level of cells took as long as
+solving them one after the other in one process.
+
 A worker starts by importing the caller's main module, as every non-fork start of
 :mod:`multiprocessing` does, so a script must keep its work under
 ``if __name__ == "__main__":``. A script file without that guard would run again in each worker;
@@ -23,6 +29,10 @@ import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any, TypeVar
+
+from threadpoolctl import threadpool_limits
+
+from certify.solve import set_solver_threads
 
 __all__ = ["map_solves", "workers"]
 
@@ -57,11 +67,19 @@ def _main_is_guarded() -> bool:
         return False
 
 
+def _share_cores(threads: int) -> None:
+    """Start a worker with its share of the cores: ``threads`` for BLAS and for Clarabel."""
+    threadpool_limits(threads)
+    set_solver_threads(threads)
+
+
 def _pool(count: int) -> Executor:
     if count not in _POOL:
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["teleopkit.certification.lmi"])
-        _POOL[count] = ProcessPoolExecutor(count, mp_context=context)
+        threads = max(1, (os.cpu_count() or 1) // count)
+        _POOL[count] = ProcessPoolExecutor(count, mp_context=context, initializer=_share_cores,
+                                           initargs=(threads,))
     return _POOL[count]
 
 

@@ -14,6 +14,7 @@ from certify import (
     max_delay,
     max_delay_certificate,
 )
+from certify.solve import set_solver_threads, solver_threads
 
 BENCHMARK_EXACT = 6.172581371  # arccos(-0.9) / sqrt(0.19)
 
@@ -193,3 +194,16 @@ def test_frozen_parameter_uses_vertex_functionals(benchmark_system, method, mu):
     moved = dataclasses.replace(cert, system=PolytopicDelaySystem((point,)), matrices=mats)
     assert moved.verify()
     assert certify_delay(point, cert.delay_bounds, method, mu).certified
+
+
+def test_a_thread_cap_leaves_the_verdict_alone(benchmark_system):
+    free = certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0)
+    try:
+        set_solver_threads(1)
+        assert solver_threads() == 1
+        capped = certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0)
+    finally:
+        set_solver_threads(0)
+    assert capped.certified and free.certified
+    with pytest.raises(ValueError, match="threads must be 0"):
+        set_solver_threads(-1)
