@@ -7,6 +7,7 @@ import pytest
 
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import certify_gains
+from teleopkit.certification.cell_memo import CellMemo
 from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope
 from teleopkit.certification.cover import (
     LIMIT_RTOL,
@@ -55,8 +56,29 @@ def test_the_cells_cover_the_set_and_interior_gains_are_certified(one_joint, tig
 
 def test_a_bound_beyond_a_vertex_margin_fails_at_that_vertex(one_joint):
     cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.7, 1.7)
-    # the whole set, then its halves beside the weakest corner, which fails alone
-    assert not cover.certified and "gain vertex" in cover.reason and cover.solves <= 1 + 2 + 1
+    # the whole set, then the weakest corner alone, which fails: no cell is solved after it
+    assert not cover.certified and "gain vertex" in cover.reason and cover.solves == 2
+
+
+def test_a_failed_gain_point_in_the_memo_ends_a_cover_without_solves(one_joint):
+    whole = GainPolytope.from_box(NARROW)
+    first = cover_certificate(one_joint, whole, 1.7, 1.7)
+    memo = CellMemo(one_joint, (1.7, 1.7), LMI_METHOD, (0.0, 0.0))
+    failed_point = np.array([10.0, 30.0])
+    memo.record_vertex(failed_point, first.certificates[-1])
+    inner = GainPolytope.from_box(GainBox(((6.0, 10.0),), ((30.0, 50.0),)))
+    again = cover_certificate(one_joint, inner, 1.7, 1.7, memo=memo)
+    assert not again.certified and again.solves == 0 and "[10.0, 30.0]" in again.reason
+    elsewhere = GainPolytope.from_box(GainBox(((5.0, 6.0),), ((50.0, 60.0),)))
+    assert memo.failed_vertex(elsewhere) is None
+
+
+def test_after_a_wholly_failed_level_the_next_cells_are_quarters(tight_cover):
+    cover = tight_cover
+    assert cover.certified and all(box is not None for box in cover.boxes)  # the root failed
+    ratios = {tuple(np.round(upper / lower, 9)) for lower, upper in cover.boxes}
+    assert ratios == {(np.sqrt(2).round(9),) * 2}  # both gains halved once: no halves solved
+    assert cover.solves == 1 + 1 + 4  # the root, its weakest corner alone, the four quarters
 
 
 def test_a_spent_budget_is_not_certified(one_joint):

@@ -67,7 +67,8 @@ class CellMemo:
         default_factory=dict, init=False, repr=False)
     _failed: dict[bytes, list[tuple[GainPolytope, Certificate]]] = field(
         default_factory=dict, init=False, repr=False)
-    _vertices: dict[bytes, Certificate] = field(default_factory=dict, init=False, repr=False)
+    _vertices: dict[bytes, tuple[np.ndarray, Certificate]] = field(
+        default_factory=dict, init=False, repr=False)
 
     def answers(self, params: TeleoperatorParams, bounds: tuple[float, float], method: str,
                 delay_lower: tuple[float, float]) -> bool:
@@ -142,7 +143,8 @@ class CellMemo:
         certify.Certificate or None
             Its certificate, or ``None`` if it was not checked.
         """
-        return self._vertices.get(_key(action))
+        known = self._vertices.get(_key(action))
+        return None if known is None else known[1]
 
     def record_vertex(self, action: np.ndarray, cert: Certificate) -> None:
         """Remember the certificate of one gain vertex checked alone.
@@ -154,4 +156,25 @@ class CellMemo:
         cert : certify.Certificate
             Its certificate.
         """
-        self._vertices[_key(action)] = cert
+        self._vertices[_key(action)] = (np.array(action, dtype=float), cert)
+
+    def failed_vertex(self, polytope: GainPolytope) -> tuple[np.ndarray, Certificate] | None:
+        """A gain vertex inside ``polytope`` checked alone and not certified, if there is one.
+
+        No LMI certifies a set of switching gains containing such a point: its conditions
+        restricted to the point would certify the point alone.
+
+        Parameters
+        ----------
+        polytope : GainPolytope
+            The gain set.
+
+        Returns
+        -------
+        tuple of (ndarray, certify.Certificate) or None
+            The gains and their failed certificate, or ``None``.
+        """
+        for action, cert in self._vertices.values():
+            if not cert.certified and polytope.contains(action[None, :]).all():
+                return action, cert
+        return None

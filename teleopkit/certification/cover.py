@@ -8,11 +8,17 @@ it (one functional, gains as a multiplier uncertainty: a few seconds per cell), 
 conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
-spent. The cells of one level of the split are solved together on the local cores
-(:mod:`~teleopkit.certification.parallel`). The whole set is tried first (one cell); if it fails,
-the corner the closed form finds weakest is solved alone beside the first split, and once the
-split has failed as many cells as the set has vertices, the other vertices are checked alone
-with the next level: a vertex that no LMI certifies ends the search at once.
+spent. After a level in which no cell is certified, the failed cells are split twice (the
+level between is skipped: its cells are nearly as wide and mostly fail too). The cells of one
+level of the split are solved together on the local cores
+(:mod:`~teleopkit.certification.parallel`).
+
+No LMI certifies a cell whose corner it cannot certify alone, and a corner alone is a smaller
+problem than a cell, so corners are checked before the cells that would need them: the one the
+closed form finds weakest once the whole set (the first cell) fails, then all of them once a
+whole level fails or the split has failed as many cells as the set has corners. A gain point of
+the set found not certified alone, now or by an earlier cover sharing the memo, ends the search
+at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -127,6 +133,17 @@ def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.n
     return [(lower, first_upper), (second_lower, upper)]
 
 
+def _split_again(wave: list[tuple[np.ndarray, np.ndarray]]
+                 ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The next level's halves, halved once more where they are wide enough to split.
+
+    Used after a level in which no cell was certified: its halves are nearly as wide and would
+    mostly fail too, so the level is skipped (two halvings, the boxes of the level after it).
+    """
+    return [half for box in wave
+            for half in (_halves(*box) if _ratios(*box).max() >= MIN_RATIO else [box])]
+
+
 def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                       tr_max: float, method: str = LMI_METHOD, budget: int = CELL_BUDGET,
                       delay_lower: tuple[float, float] = NO_LOWER,
@@ -190,10 +207,11 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
                      tuple(empty), root=root)
 
-    # once the whole set fails, the corner the closed form finds weakest is solved alone beside
-    # the first split: when no LMI certifies it, nothing containing it is, and the search ends
+    # once the whole set fails, the corner the closed form finds weakest is checked alone, then
+    # all corners once a level fails entirely or the split has failed as many cells as the set
+    # has corners: a corner that no LMI certifies ends the search before the cells are solved
     weakest = corners[weakest_first(params, corners)[0]]
-    checks: list[np.ndarray] = []  # gain vertices to check alone with the next level
+    checks: list[np.ndarray] = []  # gain vertices to check alone before the next level
     wave = [bounding if root is None else root]
     while wave:
         todo = []
@@ -208,25 +226,25 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         unchecked = [action for action in checks if memo.vertex(action) is None]
         if solves + len(unchecked) + len(fresh) > budget:
             return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
+        solved = map_solves(_call, [(vertex_certificate, (params, action, tl_max, tr_max, method,
+                                                          delay_lower)) for action in unchecked])
+        solves += len(solved)
+        for action, verdict in zip(unchecked, solved, strict=True):
+            memo.record_vertex(action, verdict)
+        failed = memo.failed_vertex(polytope)
+        if failed is not None:
+            return partial(f"the gain vertex {failed[0].tolist()} is not certified alone",
+                           (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
                   max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
-        solved = map_solves(_call, [
-            *((vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
-              for action in unchecked),
-            *((lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
-                                 delay_lower)) for k in fresh)])
+        solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
+                                                       "switching", method, delay_lower))
+                                    for k in fresh])
         solves += len(solved)
-        for action, cert in zip(unchecked, solved[:len(unchecked)], strict=True):
-            memo.record_vertex(action, cert)
-        for k, cert in zip(fresh, solved[len(unchecked):], strict=True):
+        for k, cert in zip(fresh, solved, strict=True):
             known[k] = cert
             memo.record(*todo[k], cert)
-        for action in checks:
-            vertex = memo.vertex(action)
-            if vertex is not None and not vertex.certified:
-                return partial(f"the gain vertex {action.tolist()} is not certified alone",
-                               (vertex,))
-        checks, wave = [], []
+        checks, wave, certified_before = [], [], len(cells)
         for (box, cell), cert in zip(todo, known, strict=True):
             assert cert is not None
             if cert.certified:
@@ -239,13 +257,14 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                                "further", (cert,))
             failures += 1
             wave.extend(_halves(*box))
+        level_failed = len(cells) == certified_before
+        if level_failed:
+            wave = _split_again(wave)
         if failures == 1 and wave:
             checks = [weakest]
-        elif wave and not vertices_checked and failures >= len(corners):
-            # splitting has cost as much as checking the other vertices: one that fails alone
-            # would keep it going to the budget; they are solved with the next level
+        elif wave and not vertices_checked and (level_failed or failures >= len(corners)):
             vertices_checked = True
-            checks = [action for action in corners if not np.array_equal(action, weakest)]
+            checks = list(corners)
     return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty),
                  root=root)
 
