@@ -10,7 +10,9 @@ from teleopkit.certification import certify_gains
 from teleopkit.certification.cell_memo import CellMemo
 from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope
 from teleopkit.certification.cover import (
+    CORNERS_AT_ONCE,
     LIMIT_RTOL,
+    _check_alone,
     cover_certificate,
     cover_margin,
     limiting_vertex,
@@ -169,3 +171,13 @@ def test_the_parallel_vertex_margin_agrees_with_a_bisection(one_joint, action, g
     assert sectioned == pytest.approx(bisected, rel=0.021)
     assert vertex_certificate(one_joint, np.array(action), sectioned, sectioned).certified
 
+
+
+def test_corners_checked_alone_stop_at_the_first_batch_with_a_failure(one_joint):
+    memo = CellMemo(one_joint, (1.7, 1.7), LMI_METHOD, (0.0, 0.0))
+    corners = GainPolytope.from_box(NARROW).vertices()
+    weakest_first_order = sorted(corners.tolist(), key=lambda a: (-a[0], a[1]))  # (10, 30) first
+    actions = [np.array(a) for a in weakest_first_order]
+    assert _check_alone(one_joint, actions, memo) == CORNERS_AT_ONCE
+    assert memo.failed_vertex(GainPolytope.from_box(NARROW)) is not None
+    assert memo.vertex(actions[-1]) is None  # never solved

@@ -16,9 +16,9 @@ level of the split are solved together on the local cores
 No LMI certifies a cell whose corner it cannot certify alone, and a corner alone is a smaller
 problem than a cell, so corners are checked before the cells that would need them: the one the
 closed form finds weakest once the whole set (the first cell) fails, then all of them once a
-whole level fails or the split has failed as many cells as the set has corners. A gain point of
-the set found not certified alone, now or by an earlier cover sharing the memo, ends the search
-at once.
+whole level fails or the split has failed as many cells as the set has corners, weakest first,
+:data:`CORNERS_AT_ONCE` at a time. A gain point of the set found not certified alone, now or by
+an earlier cover sharing the memo, ends the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -48,13 +48,18 @@ from teleopkit.certification.lmi import (
 from teleopkit.certification.parallel import map_solves, workers
 from teleopkit.model.params import TeleoperatorParams
 
-__all__ = ["CELL_BUDGET", "LIMIT_RTOL", "MIN_RATIO", "Cover", "CoverMargin", "cover_certificate",
-           "cover_margin", "limiting_vertex", "set_certificate", "vertex_margin"]
+__all__ = ["CELL_BUDGET", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "Cover", "CoverMargin",
+           "cover_certificate", "cover_margin", "limiting_vertex", "set_certificate",
+           "vertex_margin"]
 
 _log = logging.getLogger(__name__)
 
 CELL_BUDGET = 400
 """Most cell solves :func:`cover_certificate` spends before it gives up (not certified)."""
+
+CORNERS_AT_ONCE = 2
+"""Gain vertices a cover checks alone side by side before it looks at their verdicts (fixed, so
+a cover spends the same solves on every machine)."""
 
 LIMIT_RTOL = 0.05
 """Relative precision of :func:`limiting_vertex`'s margin."""
@@ -210,7 +215,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     # once the whole set fails, the corner the closed form finds weakest is checked alone, then
     # all corners once a level fails entirely or the split has failed as many cells as the set
     # has corners: a corner that no LMI certifies ends the search before the cells are solved
-    weakest = corners[weakest_first(params, corners)[0]]
+    ordered = corners[weakest_first(params, corners)]
     checks: list[np.ndarray] = []  # gain vertices to check alone before the next level
     wave = [bounding if root is None else root]
     while wave:
@@ -226,11 +231,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         unchecked = [action for action in checks if memo.vertex(action) is None]
         if solves + len(unchecked) + len(fresh) > budget:
             return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
-        solved = map_solves(_call, [(vertex_certificate, (params, action, tl_max, tr_max, method,
-                                                          delay_lower)) for action in unchecked])
-        solves += len(solved)
-        for action, verdict in zip(unchecked, solved, strict=True):
-            memo.record_vertex(action, verdict)
+        solves += _check_alone(params, unchecked, memo)
         failed = memo.failed_vertex(polytope)
         if failed is not None:
             return partial(f"the gain vertex {failed[0].tolist()} is not certified alone",
@@ -261,12 +262,33 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         if level_failed:
             wave = _split_again(wave)
         if failures == 1 and wave:
-            checks = [weakest]
+            checks = [ordered[0]]
         elif wave and not vertices_checked and (level_failed or failures >= len(corners)):
             vertices_checked = True
-            checks = list(corners)
+            checks = list(ordered)
     return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty),
                  root=root)
+
+
+def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: CellMemo) -> int:
+    """Solve gain vertices alone into the memo, :data:`CORNERS_AT_ONCE` at a time, in order.
+
+    Stops after the first batch with a vertex not certified (which ends the cover); returns the
+    number of solves.
+    """
+    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
+    solves = 0
+    for start in range(0, len(actions), CORNERS_AT_ONCE):
+        batch = actions[start:start + CORNERS_AT_ONCE]
+        solved = map_solves(_call, [(vertex_certificate, (params, action, tl_max, tr_max,
+                                                          method, delay_lower))
+                                    for action in batch])
+        solves += len(solved)
+        for action, verdict in zip(batch, solved, strict=True):
+            memo.record_vertex(action, verdict)
+        if not all(verdict.certified for verdict in solved):
+            break
+    return solves
 
 
 def _call(solve: Callable[..., Certificate], args: tuple) -> Certificate:
