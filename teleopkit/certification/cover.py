@@ -128,6 +128,11 @@ def _ratios(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         return np.where(upper > lower, upper / lower, 1.0)
 
 
+def _splittable(lower: np.ndarray, upper: np.ndarray) -> bool:
+    """Whether some gain range of the box is at least :data:`MIN_RATIO` wide in ratio."""
+    return bool(_ratios(lower, upper).max() >= MIN_RATIO)
+
+
 def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Split the widest range (in ratio) at its geometric mean (midpoint from zero)."""
     axis = int(np.argmax(_ratios(lower, upper)))
@@ -146,7 +151,7 @@ def _split_again(wave: list[tuple[np.ndarray, np.ndarray]]
     mostly fail too, so the level is skipped (two halvings, the boxes of the level after it).
     """
     return [half for box in wave
-            for half in (_halves(*box) if _ratios(*box).max() >= MIN_RATIO else [box])]
+            for half in (_halves(*box) if _splittable(*box) else [box])]
 
 
 def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
@@ -253,7 +258,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                 certs.append(cert)
                 boxes.append(box)
                 continue
-            if _ratios(*box).max() < MIN_RATIO:
+            if not _splittable(*box):
                 return partial(f"the cell around {box[0].tolist()} is too small to split "
                                "further", (cert,))
             failures += 1
