@@ -66,6 +66,14 @@ def test_three_links_wall_saturation_and_fast_switching(rng):
     _compare(scenario, rng.uniform(0.0, 40.0, size=(80, 2, 6)), 80)
 
 
+def test_one_three_link_scenario_takes_the_serial_kernel(rng):
+    # a single scenario runs without the parallel loop, on the generic (Cholesky) path here
+    forward = SwitchingDelay(0.0, 0.05, dwell=0.0037, mode="extremes", seed=5, batch=1)
+    backward = SwitchingDelay(0.001, 0.03, dwell=0.002, seed=6, batch=1)
+    scenario = Scenario(_three_link(), forward, backward, rng.uniform(-1, 1, size=(1, 3)))
+    _compare(scenario, rng.uniform(0.0, 40.0, size=(40, 1, 6)), 40)
+
+
 @pytest.mark.parametrize("delay", [0.0, 0.001, 0.0025, 0.013])
 def test_short_and_zero_delays(delay):
     scenario = replace(paper_scenarios(5, batch=1), forward=ConstantDelay(delay),

@@ -247,7 +247,7 @@ class GainPolytope:
             Whether each action lies in the polytope.
         """
         actions = np.asarray(actions, dtype=float)
-        return np.all(actions @ self.G.T <= self.h + tol, axis=-1)
+        return (actions @ self.G.T <= self.h + tol).all(axis=-1)
 
     def joint_vertices(self, i: int) -> np.ndarray:
         """Vertices ``(K_r^i, B_r^i)`` of joint ``i``'s polygon.

@@ -119,8 +119,9 @@ class RewardWeights:
         ndarray, shape (...)
             ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
         """
-        return -(self.alpha * np.sum(e_track**2, axis=-1) + self.beta * np.sum(e_damp**2, axis=-1)
-                 + self.gamma * np.sum(action**2, axis=-1))
+        return -(self.alpha * (e_track * e_track).sum(axis=-1)
+                 + self.beta * (e_damp * e_damp).sum(axis=-1)
+                 + self.gamma * (action * action).sum(axis=-1))
 
 
 @dataclass(frozen=True)
@@ -329,7 +330,7 @@ class TeleopBatch:
         obs = self._observe(state, result.delayed[0, :, 0])
         reward = self.config.weights.reward(result.e_track[0], result.e_damp[0], applied)
         bound = self.config.state_bound
-        failed = ~np.all(np.abs(state) <= bound, axis=1)
+        failed = ~(np.abs(state) <= bound).all(axis=1)
         if failed.any():
             reward = np.where(failed, -self.config.failure_penalty, reward)
             obs = np.clip(np.nan_to_num(obs), -bound, bound)

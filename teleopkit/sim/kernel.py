@@ -23,6 +23,9 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
 - A block of one scenario (a single run, or the last block of a batch) runs the per-variable
   loops without their lane loop: the vectorised loop's set-up for one lane took about half of
   a single scenario's time (a 40 s run: 17 ms, 9 ms without).
+- A batch of one runs the same block body outside a parallel loop: launching the parallel loop
+  and capping its threads cost about a fifth of a single scenario's control period (23.5 us,
+  19 us without).
 """
 
 from __future__ import annotations
@@ -405,46 +408,71 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
             out_state[p, lane, v] = xs[b, v, w]
 
 
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
+                   out_delayed, xs, st, slopes, work, b, lo, width):
+    """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period."""
+    dim = xs.shape[1]
+    length = hist.shape[2]
+    for p in range(gains.shape[0]):
+        for s in range(substeps):
+            k = step0 + p * substeps + s
+            newest = k % length
+            for r in range(4):
+                clock = (k, newest, 2 * (p * substeps + s) + (r + 1) // 2, p)
+                frac = _STAGE_FRACTIONS[r]
+                _stage_state(xs, slopes, st, b, r, frac * dt, width)
+                # The loops over lanes stay in the parallel body (this helper is inlined),
+                # where LLVM vectorises them (the arrays are noalias there, not in a separately
+                # compiled callee).
+                if dim == 2 * BLOCKS:
+                    for w in range(width):
+                        _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
+                                       frac, dt, st, slopes, b, r, lo, w)
+                else:
+                    for w in range(width):
+                        _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
+                                      frac, dt, st, slopes, b, r, lo, w, work)
+            _rk4_update(xs, slopes, b, dt, width)
+            _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
+        _emit(hist, initial, delays, step0 + (p + 1) * substeps, 2 * (p + 1) * substeps, p,
+              dt, xs, b, lo, width, out_state, out_delayed)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _scratch(blocks, dim):
+    """Per-block state, stage state, the four RK4 slopes and the generic path's work rows."""
+    n = dim // BLOCKS
+    return (np.empty((blocks, dim, LANES)), np.empty((blocks, dim, LANES)),
+            np.empty((blocks, 4, dim, LANES)), np.empty((blocks, n + 5, n)))
+
+
 @njit(cache=True, error_model="numpy", parallel=True)
 def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
              out_delayed):
     batch, dim = x.shape
-    n = dim // BLOCKS
-    length = hist.shape[2]
     blocks = (batch + LANES - 1) // LANES
-    # Per-block scratch, allocated outside the parallel loop so that it reaches it as noalias
-    # arguments: state, stage state, the four RK4 slopes and the generic path's work rows.
-    xs = np.empty((blocks, dim, LANES))
-    st = np.empty_like(xs)
-    slopes = np.empty((blocks, 4, dim, LANES))
-    work = np.empty((blocks, n + 5, n))
+    # The scratch is allocated outside the parallel loop so that it reaches it as noalias
+    # arguments.
+    xs, st, slopes, work = _scratch(blocks, dim)
     for b in prange(blocks):
         lo = b * LANES
         width = min(LANES, batch - lo)
         _transfer(x, xs, b, lo, width, True)
-        for p in range(gains.shape[0]):
-            for s in range(substeps):
-                k = step0 + p * substeps + s
-                newest = k % length
-                for r in range(4):
-                    clock = (k, newest, 2 * (p * substeps + s) + (r + 1) // 2, p)
-                    frac = _STAGE_FRACTIONS[r]
-                    _stage_state(xs, slopes, st, b, r, frac * dt, width)
-                    # The loops over lanes stay in this parallel body, where LLVM vectorises
-                    # them (the arrays are noalias here, not in a separately compiled callee).
-                    if dim == 2 * BLOCKS:
-                        for w in range(width):
-                            _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
-                                           frac, dt, st, slopes, b, r, lo, w)
-                    else:
-                        for w in range(width):
-                            _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
-                                          frac, dt, st, slopes, b, r, lo, w, work)
-                _rk4_update(xs, slopes, b, dt, width)
-                _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
-            _emit(hist, initial, delays, step0 + (p + 1) * substeps, 2 * (p + 1) * substeps, p,
-                  dt, xs, b, lo, width, out_state, out_delayed)
+        _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+                       out_state, out_delayed, xs, st, slopes, work, b, lo, width)
         _transfer(x, xs, b, lo, width, False)
+
+
+@njit(cache=True, error_model="numpy")
+def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+                    out_state, out_delayed):
+    """:func:`_advance` for one scenario, without the parallel loop's launch."""
+    xs, st, slopes, work = _scratch(1, x.shape[1])
+    _transfer(x, xs, 0, 0, 1, True)
+    _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+                   out_state, out_delayed, xs, st, slopes, work, 0, 0, 1)
+    _transfer(x, xs, 0, 0, 1, False)
 
 
 def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt: float,
@@ -484,11 +512,15 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
     out_delayed : ndarray, shape (P, B, 2, n)
         Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
     """
+    args = (model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
+            out_delayed)
+    if x.shape[0] == 1:  # one scenario: the parallel loop's launch would cost a third
+        _advance_single(*args)
+        return
     threads = numba.get_num_threads()
     if x.shape[0] <= LANES:  # one block: waking the other threads would only cost time
         numba.set_num_threads(1)
     try:
-        _advance(model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
-                 out_state, out_delayed)
+        _advance(*args)
     finally:
         numba.set_num_threads(threads)

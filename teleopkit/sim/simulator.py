@@ -58,7 +58,7 @@ def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
     if gains.shape[-1:] != (2 * n_joints,):
         raise ValueError(f"remote gains need {2 * n_joints} values [K_r..., B_r...] on the last "
                          f"axis, got shape {gains.shape}")
-    if not np.all(np.isfinite(gains)) or np.any(gains < 0):
+    if not (np.isfinite(gains).all() and (gains >= 0).all()):
         raise ValueError("remote gains must be finite and non-negative")
     return gains
 
@@ -196,9 +196,11 @@ class Simulator:
             The state, delayed signals and delays at the end of each period.
         """
         gains = check_gains(gains, self.n_joints)
-        gains = np.broadcast_to(
-            gains if gains.ndim == 3 else gains.reshape(1, -1, gains.shape[-1]),
-            (gains.shape[0] if gains.ndim == 3 else 1, self.batch, 2 * self.n_joints))
+        if gains.ndim != 3:
+            gains = gains.reshape(1, -1, gains.shape[-1])
+        shape = (gains.shape[0], self.batch, gains.shape[2])
+        if gains.shape != shape:
+            gains = np.broadcast_to(gains, shape)
         result = self._empty_record(gains.shape[0])
         self._integrate(gains, result)
         return result
@@ -244,7 +246,7 @@ class Simulator:
         times, delays, unit = self._stage_inputs(periods)
         ends = slice(2 * self.substeps, None, 2 * self.substeps)
         out.t[:] = times[ends]
-        out.delays[:] = np.moveaxis(delays[:, ends], 0, -1)
+        out.delays[:] = delays[:, ends].transpose(1, 2, 0)
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(

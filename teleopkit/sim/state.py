@@ -20,6 +20,7 @@ uses this layout).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 from typing import Literal
 
 import numpy as np
@@ -75,10 +76,7 @@ class StateLayout:
         StateLayout
             The layout for ``n`` joints.
         """
-        size = np.shape(state)[-1]
-        if size % len(FIELDS):
-            raise ValueError(f"a state has {len(FIELDS)} n entries, got {size}")
-        return cls(size // len(FIELDS))
+        return _layout(cls, np.shape(state)[-1])
 
     @property
     def size(self) -> int:
@@ -162,3 +160,11 @@ class StateLayout:
         for name, values in blocks.items():
             state[:, self.slice(name)] = values  # type: ignore[arg-type]
         return state
+
+
+@cache
+def _layout(cls: type[StateLayout], size: int) -> StateLayout:
+    """The (shared, immutable) layout of states of ``size`` entries."""
+    if size % len(FIELDS):
+        raise ValueError(f"a state has {len(FIELDS)} n entries, got {size}")
+    return cls(size // len(FIELDS))
