@@ -20,7 +20,7 @@ uses this layout).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from typing import Literal
 
 import numpy as np
@@ -96,10 +96,15 @@ class StateLayout:
         slice
             Its ``n`` entries.
         """
-        if name not in FIELDS:
-            raise ValueError(f"unknown state block {name!r}; known: {', '.join(FIELDS)}")
-        start = FIELDS.index(name) * self.n_joints
-        return slice(start, start + self.n_joints)
+        try:
+            return self._slices[name]
+        except (KeyError, TypeError):
+            raise ValueError(f"unknown state block {name!r}; known: {', '.join(FIELDS)}") from None
+
+    @cached_property
+    def _slices(self) -> dict[str, slice]:
+        n = self.n_joints
+        return {name: slice(k * n, (k + 1) * n) for k, name in enumerate(FIELDS)}
 
     def get(self, state: np.ndarray, name: Field) -> np.ndarray:
         """Block ``name`` of states of any leading shape.
