@@ -328,18 +328,18 @@ class TD3:
         """
         cfg = self.config
         target = self._critic_target(batch)
-        losses = []
-        for critic, optimizer in zip(self.critics, self.critic_optimizers, strict=True):
-            loss = F.mse_loss(critic(batch.obs, batch.action), target)
-            self._step(optimizer, critic, loss)
-            losses.append(loss.item())
+        losses = [F.mse_loss(critic(batch.obs, batch.action), target) for critic in self.critics]
+        # the twins share no weights: one backward pass of the summed losses gives each its own
+        self._step(list(zip(self.critic_optimizers, self.critics, strict=True)),
+                   torch.stack(losses).sum())
         self.updates += 1
         actor_loss = math.nan
         if self.updates % cfg.policy_delay == 0:
             actor_loss = self._update_actor(batch.obs)
             _soft_update(self.actor_target, self.actor, cfg.tau)
             _soft_update(self.critic_targets, self.critics, cfg.tau)
-        return {"critic_loss": float(np.mean(losses)), "actor_loss": actor_loss}
+        return {"critic_loss": float(np.mean([loss.item() for loss in losses])),
+                "actor_loss": actor_loss}
 
     def _critic_target(self, batch: Batch) -> torch.Tensor:
         """``r + discount (1 - terminated) min_i Q'_i(s', P(pi'(s') + clipped noise))``."""
@@ -361,16 +361,19 @@ class TD3:
         critic = self.critics[0]
         critic.requires_grad_(False)  # no gradients for the critic's weights here
         loss = -critic(obs, applied).mean() + self.config.projection_penalty * outside
-        self._step(self.actor_optimizer, self.actor, loss)
+        self._step([(self.actor_optimizer, self.actor)], loss)
         critic.requires_grad_(True)
         return float(loss.item())
 
-    def _step(self, optimizer: torch.optim.Optimizer, module: nn.Module,
+    def _step(self, pairs: list[tuple[torch.optim.Optimizer, nn.Module]],
               loss: torch.Tensor) -> None:
-        optimizer.zero_grad(set_to_none=True)
+        """One backward pass of ``loss``, then each module's gradient clipped and stepped."""
+        for optimizer, _ in pairs:
+            optimizer.zero_grad(set_to_none=True)
         loss.backward()
-        nn.utils.clip_grad_norm_(module.parameters(), self.config.grad_clip)
-        optimizer.step()
+        for optimizer, module in pairs:
+            nn.utils.clip_grad_norm_(module.parameters(), self.config.grad_clip)
+            optimizer.step()
 
     def state_dict(self) -> dict[str, Any]:
         """Networks, optimisers, update counter and generator state."""
