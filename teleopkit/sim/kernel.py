@@ -514,7 +514,7 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
     """
     args = (model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
             out_delayed)
-    if x.shape[0] == 1:  # one scenario: the parallel loop's launch would cost a third
+    if x.shape[0] == 1:  # one scenario: the parallel launch and thread cap cost a fifth
         _advance_single(*args)
         return
     threads = numba.get_num_threads()
