@@ -20,7 +20,8 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-__all__ = ["BlockMatrix", "Form", "MatrixInequality", "bmat", "form_matrix", "is_symbolic"]
+__all__ = ["BlockMatrix", "Form", "MatrixInequality", "bmat", "diag", "form_matrix", "hadamard",
+           "is_symbolic"]
 
 Form = Mapping[str, Any]
 
@@ -57,6 +58,38 @@ def bmat(rows: list[list[Any]]) -> Any:
     if any(is_symbolic(b) for row in rows for b in row):
         return cp.bmat(rows)
     return np.block(rows)
+
+
+def diag(vector: Any) -> Any:
+    """The diagonal matrix of a vector (``cvxpy.diag`` for an expression, else ``numpy.diag``).
+
+    Parameters
+    ----------
+    vector : array or cvxpy expression, shape (r,)
+        The diagonal.
+
+    Returns
+    -------
+    numpy.ndarray or cvxpy.Expression
+        The ``(r, r)`` matrix.
+    """
+    return cp.diag(vector) if is_symbolic(vector) else np.diag(vector)
+
+
+def hadamard(a: Any, b: Any) -> Any:
+    """The entrywise product (``cvxpy.multiply`` if either operand is symbolic).
+
+    Parameters
+    ----------
+    a, b : array or cvxpy expression
+        Operands of the same shape.
+
+    Returns
+    -------
+    numpy.ndarray or cvxpy.Expression
+        ``a * b`` entry by entry.
+    """
+    return cp.multiply(a, b) if is_symbolic(a) or is_symbolic(b) else a * b
 
 
 def _is_scalar(coef: Any) -> bool:

@@ -4,10 +4,11 @@ Every method writes the time derivative of its functional as a quadratic form
 ``xi^T Phi xi`` in an augmented vector ``xi`` (blocks such as ``x``, ``dx`` and the
 delayed states) that satisfies the descriptor relation ``Gamma xi = 0``, i.e.
 ``-E x' + A0 x + sum_i A_i x(t - tau_i) = 0``. Finsler's lemma with a free slack ``N``
-(multiplying the relation divided by :func:`dynamics_scale`) turns "``Phi < 0`` on the
-kernel of ``Gamma``" into ``Phi + N Gamma + Gamma^T N^T < 0``, which is affine in
-``(E, A0, A_i)``: one common functional and one common slack checked at every vertex of a
-polytopic system certify the whole polytope, even for arbitrarily fast variation inside it.
+(multiplying the relation divided by :func:`~certify.system_data.dynamics_scale`) turns
+"``Phi < 0`` on the kernel of ``Gamma``" into ``Phi + N Gamma + Gamma^T N^T < 0``, which is
+affine in ``(E, A0, A_i)``: one common functional and one common slack checked at every vertex
+of a polytopic system certify the whole polytope, even for arbitrarily fast variation inside
+it.
 
 Where ``Phi`` depends on the current delay value (augmented functionals), it is
 convex in the delays and is checked at the vertices of the delay box; the slack may
@@ -25,10 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from certify.blocks import BlockMatrix, Form, MatrixInequality, bmat, form_matrix
+from certify.blocks import BlockMatrix, Form, MatrixInequality, bmat
 from certify.channels import Channels
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
-from certify.uncertainty import Direction, factor, robust_conditions
+from certify.system_data import SystemData, parameter_factors, system_data
+from certify.uncertainty import Direction, robust_conditions
 
 __all__ = [
     "DelayPoint",
@@ -37,7 +39,6 @@ __all__ = [
     "box_vertices",
     "check_mu",
     "delay_class_text",
-    "dynamics_scale",
     "lower_bounds",
 ]
 
@@ -387,38 +388,10 @@ class LMIMethod(ABC):
     def _uncertainty_width(self, system: PolytopicDelaySystem, ch: Channels,
                            mu: float | None) -> int:
         """Size of ``Delta``: the rank of the parameter part plus ``n`` per storage direction."""
-        factors = self.parameter_factors(system, ch, mu)
+        factors = parameter_factors(self, system, ch, mu)
         rank = 0 if factors is None else factors[0].shape[1]
         scheduled = () if system.uncertainty is None else system.uncertainty.scheduled
         return rank + ch.n * len(scheduled)
-
-    def parameter_factors(
-        self, system: PolytopicDelaySystem, ch: Channels, mu: float | None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Rank factors ``(G, H, owner)`` of the system's affine uncertainty in this method.
-
-        Parameters
-        ----------
-        system : PolytopicDelaySystem
-            The system.
-        ch : Channels
-            Delay channels.
-        mu : float or None
-            Delay-derivative bound.
-
-        Returns
-        -------
-        tuple or None
-            :func:`certify.uncertainty.factor` of the descriptor relation of each direction,
-            or ``None`` without an uncertainty (or when no parameter actually varies).
-        """
-        if system.uncertainty is None:
-            return None
-        sizes = self.blocks(ch, mu)
-        relations = [form_matrix(self.dynamics(d, ch), sizes, ch.n)
-                     for d in system.uncertainty.directions]
-        factors = factor(relations, system.uncertainty.radius)
-        return factors if factors[0].shape[1] else None
 
     def conditions(
         self,
@@ -428,6 +401,7 @@ class LMIMethod(ABC):
         h: Sequence[Any],
         h2: Sequence[Any],
         mu: float | None,
+        data: SystemData | None = None,
     ) -> list[MatrixInequality]:
         """All matrix inequalities of the method for a polytopic system.
 
@@ -451,6 +425,10 @@ class LMIMethod(ABC):
             Their squares.
         mu : float or None
             Delay-derivative bound.
+        data : SystemData, optional
+            What the conditions take from the system (:func:`certify.system_data.system_data`
+            by default); cvxpy parameters of the same shapes give a problem that serves every
+            system of the same structure.
 
         Returns
         -------
@@ -458,20 +436,16 @@ class LMIMethod(ABC):
             Positivity conditions, then the derivative conditions per (delay point, vertex),
             each followed by its multiplier conditions if there is an uncertainty.
         """
-        sizes = self.blocks(ch, mu)
-        offsets = np.cumsum([0, *sizes.values()])
-        unit = 1.0 / dynamics_scale(system)
+        data = system_data(self, system, ch, mu) if data is None else data
         copies = _copies(system)
         names = [s.name for s in self.functional_variables(ch, mu)] + _storage_names(system)
         own = [{x: var[f"{x}@{k}" if copies > 1 else x] for x in names} for k in range(copies)]
-        storage = _Storage(system, ch, sizes)
+        storage = _Storage(system, ch, self.blocks(ch, mu))
         out = []
         for k, matrices in enumerate(own):
             for cond in storage.positivity(self, matrices, ch, mu):
                 label = f"{cond.name}@{k}" if copies > 1 else cond.name
                 out.append(MatrixInequality(label, cond.matrix, cond.normalise))
-        factors = self.parameter_factors(system, ch, mu)
-        g, v, owner = factors if factors is not None else _no_factors(ch.n, sum(sizes.values()))
         for j, point in enumerate(self.delay_points(ch.m, mu)):
             phis = []
             for mats in own:
@@ -480,30 +454,20 @@ class LMIMethod(ABC):
                 phis.append(phi.assemble())
             slack = var[f"N{j}"]
             tag = "".join("h" if p else "0" for p in point)
-            for k, vertex in enumerate(system.vertices):
-                finsler = BlockMatrix(sizes)
-                gamma = self.dynamics(system.nominal(vertex), ch)
-                for b, block in enumerate(sizes):
-                    rows = slack[offsets[b] : offsets[b + 1], :]
-                    finsler.add_he({block: unit}, rows, gamma)
+            for k, relation in enumerate(data.relations):
+                finsler = slack @ relation
                 mats = own[k if copies > 1 else 0]
-                m0 = phis[k if copies > 1 else 0] + finsler.assemble()
+                m0 = phis[k if copies > 1 else 0] + finsler + finsler.T
                 label = f"derivative[vertex={k},tau={tag}]"
-                if v.shape[1] + storage.width == 0:
+                if data.right.shape[1] + storage.width == 0:
                     out.append(MatrixInequality(label, -m0))
                     continue
-                assert system.uncertainty is not None
                 multiplier = [var[f"{name}{j}@{k}"] for name in ("MQ", "MS", "MR")]
-                u = unit * (slack @ g) if g.shape[1] else None
-                u, right, deltas = storage.extend(u, v, system.uncertainty.deviations()[:, owner],
-                                                  mats)
-                out += robust_conditions(label, m0, u, right, multiplier, deltas)
+                u = slack @ data.left if data.right.shape[1] else None
+                u, right, deltas = storage.extend(u, data.right, data.deltas, mats)
+                outers = None if storage.scheduled else data.outers  # else computed from deltas
+                out += robust_conditions(label, m0, u, right, multiplier, deltas, outers)
         return out
-
-
-def _no_factors(n: int, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Empty rank factors (no parameter changes the dynamics)."""
-    return np.zeros((n, 0)), np.zeros((size, 0)), np.zeros(0, dtype=int)
 
 
 def _storage_names(system: PolytopicDelaySystem) -> list[str]:
@@ -585,26 +549,6 @@ class _Storage:
 def _copies(system: PolytopicDelaySystem) -> int:
     """Copies of the functional's matrices: one per vertex for a frozen parameter, else 1."""
     return len(system.vertices) if system.frozen and len(system.vertices) > 1 else 1
-
-
-def dynamics_scale(system: PolytopicDelaySystem) -> float:
-    """Largest entry modulus of ``E``, ``A0`` and ``A_i`` over all corners (exact in floats).
-
-    The Finsler slack multiplies the dynamics divided by this scale, which keeps the slack
-    of the order of the functional's matrices whatever the units of the system.
-
-    Parameters
-    ----------
-    system : PolytopicDelaySystem
-        The system.
-
-    Returns
-    -------
-    float
-        The scale (at least the smallest normal float).
-    """
-    mats = [m for v in system.corners() for m in (v.E_matrix, v.A0, *v.A)]
-    return max(float(np.finfo(np.float64).tiny), *(float(np.abs(m).max()) for m in mats))
 
 
 def box_vertices(m: int) -> list[DelayPoint]:

@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from certify.arrays import as_float, freeze_finite
-from certify.blocks import BlockMatrix, MatrixInequality
+from certify.blocks import BlockMatrix, MatrixInequality, diag, hadamard
 
 __all__ = ["AffineUncertainty", "Direction", "factor", "robust_conditions"]
 
@@ -293,9 +293,11 @@ def factor(relations: Sequence[Matrix], radius: Matrix) -> tuple[Matrix, Matrix,
     """
     lefts, rights, owner = [], [], []
     for k, (gamma, rho) in enumerate(zip(relations, radius, strict=True)):
-        u, sing, vt = np.linalg.svd(rho * gamma, full_matrices=False)
+        if rho == 0.0:  # a fixed parameter: no column
+            continue
+        u, sing, vt = np.linalg.svd(gamma, full_matrices=False)  # H independent of the radius
         rank = int(np.sum(sing > _RANK_RTOL * max(float(sing[0]) if sing.size else 0.0, 1e-300)))
-        lefts.append(u[:, :rank] * sing[:rank])
+        lefts.append(rho * u[:, :rank] * sing[:rank])
         rights.append(vt[:rank].T)
         owner += [k] * rank
     n, size = relations[0].shape
@@ -305,7 +307,8 @@ def factor(relations: Sequence[Matrix], radius: Matrix) -> tuple[Matrix, Matrix,
 
 
 def robust_conditions(label: str, m0: Any, u: Any, v: Matrix, multiplier: Sequence[Any],
-                      deltas: Matrix) -> list[MatrixInequality]:
+                      deltas: Any, outers: Sequence[Any] | None = None
+                      ) -> list[MatrixInequality]:
     """The full-block S-procedure conditions for ``M0 + He(U Delta V^T) < 0``.
 
     Parameters
@@ -320,8 +323,11 @@ def robust_conditions(label: str, m0: Any, u: Any, v: Matrix, multiplier: Sequen
         Right factor ``V``.
     multiplier : sequence
         ``(Q, S, R)``, each ``(r, r)`` (``Q`` and ``R`` symmetric).
-    deltas : numpy.ndarray, shape (d, r)
+    deltas : numpy.ndarray or cvxpy parameter, shape (d, r)
         Diagonals of ``Delta`` at the points of the parameter set.
+    outers : sequence, optional
+        ``outer(delta_j, delta_j)`` per point (arrays or cvxpy parameters; by default computed
+        from ``deltas``, which must then be an array).
 
     Returns
     -------
@@ -330,6 +336,8 @@ def robust_conditions(label: str, m0: Any, u: Any, v: Matrix, multiplier: Sequen
         per point.
     """
     q, s, r = multiplier
+    if outers is None:
+        outers = [np.outer(d, d) for d in deltas]
     size = {"xi": v.shape[0], "w": v.shape[1]}
     full = BlockMatrix(size)
     full.add_quad({"xi": 1.0}, m0)
@@ -338,10 +346,9 @@ def robust_conditions(label: str, m0: Any, u: Any, v: Matrix, multiplier: Sequen
     full.add_he({"xi": v.T}, s.T, {"w": 1.0})
     full.add_quad({"w": 1.0}, q)
     out = [MatrixInequality(label, -full.assemble())]
-    for j, diagonal in enumerate(deltas):
+    for j, outer in enumerate(outers):
         point = BlockMatrix({"w": v.shape[1]})
-        point.add_quad({"w": 1.0}, r)
-        point.add_he({"w": np.diag(diagonal)}, s, {"w": 1.0})
-        point.add_quad({"w": np.diag(diagonal)}, q)
+        point.add_quad({"w": 1.0}, r + hadamard(outer, q))  # Delta Q Delta = (d d^T) o Q
+        point.add_he({"w": diag(deltas[j])}, s, {"w": 1.0})
         out.append(MatrixInequality(f"{label}@delta={j}", point.assemble()))
     return out

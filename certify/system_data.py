@@ -1,0 +1,188 @@
+"""The numbers of a system that its LMIs depend on, as arrays or as cvxpy parameters.
+
+A method's LMIs (:mod:`certify.conditions`) depend on the system only through a few matrices:
+per vertex the descriptor relation ``Gamma`` of the vertex at the centre of the uncertainty
+(what the Finsler slack multiplies), and for an affine uncertainty the rank factors
+``G Delta H^T`` of its part of the relation, with the values of ``Delta`` at the points of
+the parameter set. :class:`SystemData` holds them; :meth:`SystemData.parameters` gives cvxpy
+parameters of the same shapes, so that one problem built on the parameters serves every system
+of the same structure (cvxpy's DPP: built and compiled once, re-solved with new values). The
+right factors ``H`` only depend on the parameter directions, not on the parameter ranges, and
+stay constants of the problem (they multiply decision matrices from both sides, which DPP does
+not allow for parameters).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import cvxpy as cp
+import numpy as np
+
+from certify.blocks import form_matrix
+from certify.channels import Channels
+from certify.system import PolytopicDelaySystem
+from certify.uncertainty import factor
+
+if TYPE_CHECKING:
+    from certify.conditions import LMIMethod
+
+__all__ = ["SystemData", "dynamics_scale", "system_data"]
+
+
+@dataclass(frozen=True, eq=False)
+class SystemData:
+    """What a method's LMIs take from the system (numpy arrays or cvxpy parameters).
+
+    Parameters
+    ----------
+    relations : tuple
+        Per vertex, the descriptor relation ``Gamma`` (shape ``(n, size)``) of the vertex at
+        the centre of the uncertainty, divided by :func:`dynamics_scale`.
+    left : Any
+        The left rank factors ``G`` of the uncertainty's part of the relation, divided by the
+        same scale, shape ``(n, r)`` (``r = 0`` without an uncertainty).
+    right : numpy.ndarray
+        The right rank factors ``H``, shape ``(size, r)`` (a constant of the problem).
+    owner : numpy.ndarray
+        The parameter each of the ``r`` columns belongs to.
+    deltas : Any
+        The diagonal of ``Delta`` at each point of the parameter set, shape ``(d, r)``.
+    outers : tuple
+        Per point, ``delta delta^T`` (shape ``(r, r)``, separate so that problems stay DPP).
+    """
+
+    relations: tuple[Any, ...]
+    left: Any
+    right: np.ndarray
+    owner: np.ndarray
+    deltas: Any
+    outers: tuple[Any, ...]
+
+    def structure(self) -> tuple[Any, ...]:
+        """What two systems must share for one problem to serve both.
+
+        Returns
+        -------
+        tuple
+            The shapes of the data and the constant right factors.
+        """
+        return (tuple(r.shape for r in self.relations), self.left.shape, self.right.tobytes(),
+                self.owner.tobytes(), self.deltas.shape)
+
+    def parameters(self) -> SystemData:
+        """Parameters (cvxpy) of the same shapes, holding these values.
+
+        Returns
+        -------
+        SystemData
+            The parameters (``right`` and ``owner`` are shared constants).
+        """
+        params = SystemData(
+            tuple(cp.Parameter(r.shape, name=f"Gamma{k}") for k, r in enumerate(self.relations)),
+            cp.Parameter(self.left.shape, name="G"), self.right, self.owner,
+            cp.Parameter(self.deltas.shape, name="delta"),
+            tuple(cp.Parameter(o.shape, symmetric=True, name=f"outer{j}")
+                  for j, o in enumerate(self.outers)))
+        params.assign(self)
+        return params
+
+    def assign(self, values: SystemData) -> None:
+        """Set these parameters to the arrays of ``values`` (a system of the same structure).
+
+        Parameters
+        ----------
+        values : SystemData
+            Numeric data with :meth:`structure` equal to this one's.
+        """
+        pairs = [*zip(self.relations, values.relations, strict=True), (self.left, values.left),
+                 (self.deltas, values.deltas), *zip(self.outers, values.outers, strict=True)]
+        for param, value in pairs:
+            if param.size:
+                param.value = value
+
+
+def dynamics_scale(system: PolytopicDelaySystem) -> float:
+    """Largest entry modulus of ``E``, ``A0`` and ``A_i`` over all corners (exact in floats).
+
+    The Finsler slack multiplies the dynamics divided by this scale, which keeps the slack
+    of the order of the functional's matrices whatever the units of the system.
+
+    Parameters
+    ----------
+    system : PolytopicDelaySystem
+        The system.
+
+    Returns
+    -------
+    float
+        The scale (at least the smallest normal float).
+    """
+    mats = [m for v in system.corners() for m in (v.E_matrix, v.A0, *v.A)]
+    return max(float(np.finfo(np.float64).tiny), *(float(np.abs(m).max()) for m in mats))
+
+
+def system_data(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
+                mu: float | None) -> SystemData:
+    """The numbers of ``system`` that the LMIs of ``method`` depend on.
+
+    Parameters
+    ----------
+    method : LMIMethod
+        The method (its augmented vector and descriptor relation).
+    system : PolytopicDelaySystem
+        The system.
+    ch : Channels
+        Delay channels.
+    mu : float or None
+        Delay-derivative bound.
+
+    Returns
+    -------
+    SystemData
+        Numpy arrays.
+    """
+    sizes = method.blocks(ch, mu)
+    unit = 1.0 / dynamics_scale(system)
+    relations = tuple(unit * form_matrix(method.dynamics(system.nominal(v), ch), sizes, ch.n)
+                      for v in system.vertices)
+    size = sum(sizes.values())
+    factors = parameter_factors(method, system, ch, mu)
+    left, right, owner = factors if factors is not None else (
+        np.zeros((ch.n, 0)), np.zeros((size, 0)), np.zeros(0, dtype=int))
+    unc = system.uncertainty
+    deltas = np.zeros((0, 0)) if unc is None else unc.deviations()[:, owner]
+    return SystemData(relations, unit * left, right, owner, deltas,
+                      tuple(np.outer(d, d) for d in deltas))
+
+
+def parameter_factors(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
+                      mu: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Rank factors ``(G, H, owner)`` of the system's affine uncertainty in a method.
+
+    Parameters
+    ----------
+    method : LMIMethod
+        The method.
+    system : PolytopicDelaySystem
+        The system.
+    ch : Channels
+        Delay channels.
+    mu : float or None
+        Delay-derivative bound.
+
+    Returns
+    -------
+    tuple or None
+        :func:`certify.uncertainty.factor` of the descriptor relation of each direction,
+        or ``None`` without an uncertainty (or when no parameter actually varies).
+    """
+    if system.uncertainty is None:
+        return None
+    sizes: Mapping[str, int] = method.blocks(ch, mu)
+    relations = [form_matrix(method.dynamics(d, ch), sizes, ch.n)
+                 for d in system.uncertainty.directions]
+    factors = factor(relations, system.uncertainty.radius)
+    return factors if factors[0].shape[1] else None
