@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections import OrderedDict
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import cvxpy as cp
 import numpy as np
@@ -15,6 +18,7 @@ from certify.channels import Channels
 from certify.check import RTOL, residuals
 from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_bounds
 from certify.system import PolytopicDelaySystem
+from certify.system_data import SystemData, system_data
 
 __all__ = ["LMIProblem", "set_solver_threads", "solver_threads"]
 
@@ -84,44 +88,136 @@ def _speed(rate: float) -> str:
 
 
 class _Form:
-    """The cvxpy problem of one method in the coordinates ``x = diag(scaling) z``."""
+    """The cvxpy problem of one method for every system of one structure (cvxpy's DPP).
+
+    The delay bounds are parameters, and so are the system's numbers
+    (:class:`~certify.system_data.SystemData`) of a ``shared`` form: it solves any system of
+    the same structure and channels without building or compiling the problem again. (A
+    storage that depends on rate-bounded parameters puts the points into products the
+    parameters cannot enter; such a form holds its system's numbers as constants.)
+    """
 
     def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
-                 scaling: NDArray[np.float64], channels: str) -> None:
-        self.method, self.mu, self.scaling = method, mu, scaling
-        self.system = system.scaled(scaling)
-        self.channels = Channels.of(self.system, channels)
+                 channels: Channels, shared: bool = True) -> None:
+        self.method, self.mu, self.channels, self.shared = method, mu, channels, shared
+        data = system_data(method, system, channels, mu)
+        self.structure = data.structure()
+        self.data = data.parameters() if shared else data
         self.vars = {
             s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
-            for s in method.variables(self.channels, mu, self.system)
+            for s in method.variables(channels, mu, system)
         }
         self.h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
         self.h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]
-        conds = method.conditions(self.system, self.channels, self.vars, self.h, self.h2, mu)
+        conds = method.conditions(system, channels, self.vars, self.h, self.h2, mu, self.data)
         self.t = cp.Variable(name="t")
         constraints = [c.matrix >> self.t * np.eye(c.matrix.shape[0]) for c in conds]
         scale = cp.hstack([cp.trace(c.matrix) for c in conds if c.normalise])
         constraints += [cp.sum(scale) <= 1, self.t <= MARGIN_CAP]
         self.problem = cp.Problem(cp.Maximize(self.t), constraints)
 
-    def solve(self, bounds: tuple[float, ...]
+    def data_for(self, system: PolytopicDelaySystem) -> SystemData | None:
+        """The numbers of ``system`` in this form, or ``None`` if the form cannot solve it."""
+        if not self.channels.valid_for(system):
+            return None
+        data = system_data(self.method, system, self.channels, self.mu)
+        return data if data.structure() == self.structure else None
+
+    def solve(self, system: PolytopicDelaySystem, data: SystemData, bounds: tuple[float, ...]
               ) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
         """Status, decision matrices and numpy residuals (empty unless optimal with ``t > 0``)."""
+        if self.shared:
+            self.data.assign(data)
         for param, param_sq, value in zip(self.h, self.h2, bounds, strict=True):
             param.value = value
             param_sq.value = value * value
         try:
             with warnings.catch_warnings():  # an inaccurate status is reported, not warned
                 warnings.simplefilter("ignore", UserWarning)
-                self.problem.solve(solver=SOLVER, **_SETTINGS)
+                # a fresh solver: updating the last one's data keeps its equilibration, which
+                # is wrong for another system (a badly scaled one then spoils the next)
+                self.problem.solve(solver=SOLVER, warm_start=False, **_SETTINGS)
             status = str(self.problem.status)
         except cp.SolverError as exc:
             status = f"solver_error: {exc}"
         if status != cp.OPTIMAL or self.t.value is None or float(self.t.value) <= 0.0:
             return status, {}, {}
         matrices = {k: _value(v) for k, v in self.vars.items()}
-        return status, matrices, residuals(self.method, self.system, self.channels, matrices,
+        return status, matrices, residuals(self.method, system, self.channels, matrices,
                                            bounds, self.mu)
+
+
+SHARED_FORMS = 16
+"""Most problems a process keeps for systems of a structure it has solved before (the cells of
+a cover share one per number of points and coordinates): building and compiling one takes
+about a fifth of a two-joint cell's solve."""
+
+_SHARED: OrderedDict[tuple[Any, ...], list[_Form]] = OrderedDict()
+
+
+def _family(system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
+            channels: Channels, scaling: NDArray[np.float64]) -> tuple[Any, ...]:
+    """What systems must share before their forms are compared (structure, coordinates)."""
+    unc = system.uncertainty
+    spread = () if unc is None else (unc.p, len(unc.points), tuple(np.isinf(unc.rates)))
+    return (type(method).__name__, method.name, method.lower, mu, channels.r,
+            channels.reduced, system.n, system.m, len(system.vertices), system.frozen, spread,
+            scaling.tobytes())
+
+
+def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
+                 channels: Channels, scaling: NDArray[np.float64]) -> tuple[_Form, SystemData]:
+    """A kept form that solves ``system`` (built and kept if none does), and its data."""
+    key = _family(system, method, mu, channels, scaling)
+    forms = _SHARED.setdefault(key, [])
+    _SHARED.move_to_end(key)
+    for form in forms:
+        data = form.data_for(system)
+        if data is not None:
+            return form, data
+    form = _Form(system, method, mu, channels)
+    forms.append(form)
+    while sum(len(f) for f in _SHARED.values()) > SHARED_FORMS:
+        oldest = next(iter(_SHARED))
+        _SHARED[oldest].pop(0)
+        if not _SHARED[oldest]:
+            del _SHARED[oldest]
+    data = form.data_for(system)
+    assert data is not None
+    return form, data
+
+
+@dataclass(frozen=True)
+class _Posed:
+    """A form with the system it is solved for, in the form's coordinates."""
+
+    form: _Form
+    system: PolytopicDelaySystem
+    data: SystemData
+    scaling: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
+           scaling: NDArray[np.float64], mode: str) -> _Posed:
+        """Pose ``system`` in the coordinates ``x = diag(scaling) z``.
+
+        The form is shared with earlier systems of the same structure posed in the same
+        coordinates (the cells of a cover have the same balancing); a storage on rate-bounded
+        parameters gets a form of its own, with the numbers as constants.
+        """
+        scaled = system.scaled(scaling)
+        channels = Channels.of(scaled, mode)
+        if scaled.uncertainty is None or not scaled.uncertainty.scheduled:
+            form, data = _shared_form(scaled, method, mu, channels, scaling)
+        else:
+            form = _Form(scaled, method, mu, channels, shared=False)
+            data = system_data(method, scaled, channels, mu)
+        return cls(form, scaled, data, scaling)
+
+    def solve(self, bounds: tuple[float, ...]
+              ) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
+        """:meth:`_Form.solve` for this system."""
+        return self.form.solve(self.system, self.data, bounds)
 
 
 def _value(var: cp.Variable) -> np.ndarray:
@@ -164,7 +260,7 @@ class LMIProblem:
         self.method = method.with_lower(self.lower)
         self.mu = check_mu(mu)
         self.channels = channels
-        self._forms = [_Form(system, self.method, self.mu, np.ones(system.n), channels)]
+        self._forms = [_Posed.of(system, self.method, self.mu, np.ones(system.n), channels)]
         self.assumptions = (
             delay_class_text(self.mu, self.lower),
             _system_text(system),
@@ -178,15 +274,16 @@ class LMIProblem:
     @property
     def problem(self) -> cp.Problem:
         """The cvxpy problem in the system's own coordinates."""
-        return self._forms[0].problem
+        return self._forms[0].form.problem
 
-    def _balanced(self) -> _Form | None:
+    def _balanced(self) -> _Posed | None:
         """The balanced form (built on first use), or None if balancing changes nothing."""
         if len(self._forms) == 1:
             scaling = self.system.balancing()
             if np.all(scaling == 1.0):
                 return None
-            self._forms.append(_Form(self.system, self.method, self.mu, scaling, self.channels))
+            self._forms.append(_Posed.of(self.system, self.method, self.mu, scaling,
+                                         self.channels))
         return self._forms[1]
 
     def solve(self, h: Sequence[float] | NDArray[np.float64]) -> Certificate:
@@ -232,6 +329,6 @@ class LMIProblem:
             solver=SOLVER,
             status=status,
             matrices=matrices if certified else {},
-            channels=form.channels.C,
+            channels=form.form.channels.C,
             residuals=res,
         )

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import cvxpy as cp
 import numpy as np
+import scipy.sparse
 
 from certify.blocks import form_matrix
 from certify.channels import Channels
@@ -61,31 +62,51 @@ class SystemData:
     deltas: Any
     outers: tuple[Any, ...]
 
+    slots: tuple[tuple[Any, np.ndarray], ...] = ()
+    """For parameters: the parameter of each relation and of ``left``, with the entries
+    (flattened) it holds; the other entries are structural zeros."""
+
     def structure(self) -> tuple[Any, ...]:
         """What two systems must share for one problem to serve both.
 
         Returns
         -------
         tuple
-            The shapes of the data and the constant right factors.
+            The shapes and nonzero patterns of the data and the constant right factors.
         """
-        return (tuple(r.shape for r in self.relations), self.left.shape, self.right.tobytes(),
-                self.owner.tobytes(), self.deltas.shape)
+        return (tuple((r.shape, np.flatnonzero(r).tobytes()) for r in self._sparse()),
+                self.right.tobytes(), self.owner.tobytes(), self.deltas.shape)
+
+    def _sparse(self) -> tuple[Any, ...]:
+        return (*self.relations, self.left)
 
     def parameters(self) -> SystemData:
-        """Parameters (cvxpy) of the same shapes, holding these values.
+        """Parameters (cvxpy) of the same shapes and nonzero patterns, holding these values.
+
+        The relations and ``left`` are parametrised on their nonzero entries only, so the
+        problem keeps the sparsity of the system's matrices (a dense parameter would make
+        every entry a nonzero of the solver's data, which slows the solve down).
 
         Returns
         -------
         SystemData
             The parameters (``right`` and ``owner`` are shared constants).
         """
+        slots, sparse = [], []
+        for k, value in enumerate(self._sparse()):
+            support = np.flatnonzero(value)
+            param = cp.Parameter(support.size, name=f"data{k}")
+            basis = scipy.sparse.csr_array(
+                (np.ones(support.size), (support, np.arange(support.size))),
+                shape=(value.size, support.size))
+            sparse.append(cp.reshape(basis @ param, value.shape, order="C") if support.size
+                          else np.zeros(value.shape))
+            slots.append((param, support))
         params = SystemData(
-            tuple(cp.Parameter(r.shape, name=f"Gamma{k}") for k, r in enumerate(self.relations)),
-            cp.Parameter(self.left.shape, name="G"), self.right, self.owner,
+            tuple(sparse[:-1]), sparse[-1], self.right, self.owner,
             cp.Parameter(self.deltas.shape, name="delta"),
             tuple(cp.Parameter(o.shape, symmetric=True, name=f"outer{j}")
-                  for j, o in enumerate(self.outers)))
+                  for j, o in enumerate(self.outers)), tuple(slots))
         params.assign(self)
         return params
 
@@ -95,9 +116,11 @@ class SystemData:
         Parameters
         ----------
         values : SystemData
-            Numeric data with :meth:`structure` equal to this one's.
+            Numeric data with :meth:`structure` equal to the one these parameters were made
+            from.
         """
-        pairs = [*zip(self.relations, values.relations, strict=True), (self.left, values.left),
+        pairs = [*((param, value.flat[support]) for (param, support), value
+                   in zip(self.slots, values._sparse(), strict=True)),
                  (self.deltas, values.deltas), *zip(self.outers, values.outers, strict=True)]
         for param, value in pairs:
             if param.size:
