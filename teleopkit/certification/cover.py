@@ -48,7 +48,8 @@ from teleopkit.certification.lmi import (
 from teleopkit.certification.parallel import map_solves, workers
 from teleopkit.model.params import TeleoperatorParams
 
-__all__ = ["CELL_BUDGET", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "Cover", "CoverMargin",
+__all__ = ["CELL_BUDGET", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "PROBES", "Cover",
+           "CoverMargin",
            "cover_certificate", "cover_margin", "limiting_vertex", "set_certificate",
            "vertex_margin"]
 
@@ -60,6 +61,10 @@ CELL_BUDGET = 400
 CORNERS_AT_ONCE = 2
 """Gain vertices a cover checks alone side by side before it looks at their verdicts (fixed, so
 a cover spends the same solves on every machine)."""
+
+PROBES = 2
+"""Cells of a level solved first, the most promising ones: if one fails, the rest of the level
+is split without being solved (fixed, so a cover spends the same solves on every machine)."""
 
 LIMIT_RTOL = 0.05
 """Relative precision of :func:`limiting_vertex`'s margin."""
@@ -243,16 +248,13 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                            (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
                   max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
-        solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
-                                                       "switching", method, delay_lower))
-                                    for k in fresh])
-        solves += len(solved)
-        for k, cert in zip(fresh, solved, strict=True):
-            known[k] = cert
-            memo.record(*todo[k], cert)
+        solves += _solve_level(params, todo, known, fresh, memo)
         checks, wave, certified_before = [], [], len(cells)
         for (box, cell), cert in zip(todo, known, strict=True):
-            assert cert is not None
+            if cert is None:  # not solved: its level's most promising cells failed
+                failures += 1
+                wave.extend(_halves(*box))
+                continue
             if cert.certified:
                 cells.append(cell)
                 certs.append(cert)
@@ -273,6 +275,39 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
             checks = list(ordered)
     return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty),
                  root=root)
+
+
+def _solve_level(params: TeleoperatorParams,
+                 todo: list[tuple[tuple[np.ndarray, np.ndarray], GainPolytope]],
+                 known: list[Certificate | None], fresh: list[int], memo: CellMemo) -> int:
+    """Solve the ``fresh`` cells of a level into ``known`` and the memo; return the solves.
+
+    A level of more than :data:`PROBES` cells, all of which could be split, is probed first:
+    its :data:`PROBES` most promising cells (largest closed-form margin at their weakest
+    vertex) are solved, and the others only if every probe is certified. Otherwise the level
+    would mostly fail (the others stay ``None``, to be split without a solve).
+    """
+    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
+
+    def solve(indices: list[int]) -> list[Certificate]:
+        solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
+                                                       "switching", method, delay_lower))
+                                    for k in indices])
+        for k, cert in zip(indices, solved, strict=True):
+            known[k] = cert
+            memo.record(*todo[k], cert)
+        return solved
+
+    if len(fresh) <= PROBES or not all(_splittable(*todo[k][0]) for k in fresh):
+        return len(solve(fresh))
+    promise = [float(nuno_joint_margins(params, todo[k][1].vertices()).min()) for k in fresh]
+    order = [fresh[i] for i in np.argsort(promise, kind="stable")[::-1]]
+    probed = solve(order[:PROBES])
+    if not all(cert.certified for cert in probed):
+        _log.info("the %d most promising of %d cells failed: splitting the level", PROBES,
+                  len(fresh))
+        return PROBES
+    return PROBES + len(solve(order[PROBES:]))
 
 
 def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: CellMemo) -> int:
