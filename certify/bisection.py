@@ -143,15 +143,23 @@ def _bisect(
 
     Scales start at the smallest one whose bounds reach the lower bounds (a certificate for
     ``[l, h]`` also covers every smaller upper bound, so the certified scales form an interval).
-    The search gives up (0) once the bracket is within ``h_min`` of that smallest scale.
+    Scales less than ``h_min`` above that smallest one are not searched: the scale ``h_min``
+    above it is tried first when it is not below the guess (the system's time scale, under
+    which bounds can fail numerically), else right after the guess fails; if it fails, the
+    search ends (0).
     """
     best: Certificate | None = None
     floor = max(low / w for low, w in zip(problem.lower, weights, strict=True))
     if floor >= h_max:
         raise ValueError(f"the lower delay bounds {list(problem.lower)} reach h_max = {h_max}")
     guess = max(guess, 2.0 * floor)
+    worth = floor + h_min if h_min > 0.0 else math.inf  # the smallest scale worth certifying
+    if guess <= worth < h_max:  # not below the system's time scale: it fails for real
+        guess = worth
     lo, hi = floor, min(guess, h_max)
     cert = problem.solve(hi * weights)
+    if not cert.certified and hi == worth:
+        return dataclasses.replace(cert, margin=0.0)
     for _ in range(SCAN_TRIES - 1):  # a tiny bound can fail numerically: look further up
         if cert.certified or hi >= h_max:
             break
@@ -160,6 +168,11 @@ def _bisect(
     if not cert.certified:  # nothing above the guess: bisect below it
         hi = min(guess, h_max)
         cert = problem.solve(hi * weights) if floor else cert
+    if not cert.certified and worth < hi:  # one solve instead of a bisection down to it
+        smallest = problem.solve(worth * weights)
+        if not smallest.certified:
+            return dataclasses.replace(smallest, margin=0.0)
+        lo, best = worth, smallest
     while cert.certified:  # expand until a failure or h_max
         lo, best = hi, cert
         if hi >= h_max:
@@ -216,9 +229,10 @@ def max_delay_certificate(
         ``"auto"`` (default: both channel forms where they differ, the larger bound kept),
         ``"reduced"`` or ``"full"`` (:mod:`certify.channels`).
     h_min : float, optional
-        Smallest scale above the lower bounds worth certifying: a search that narrows below it
-        without a certified bound returns 0 (default 0: it narrows to 1e-9 of the system's time
-        scale, some thirty solves when nothing is certified).
+        Smallest scale above the lower bounds worth certifying: if the initial guess fails,
+        this scale is tried next and, if it fails too, 0 is returned at once (default 0: the
+        search then narrows to 1e-9 of the system's time scale, some thirty solves when
+        nothing is certified).
 
     Returns
     -------

@@ -10,10 +10,12 @@ from certify import (
     Certificate,
     LinearDelaySystem,
     PolytopicDelaySystem,
+    bisection,
     certify_delay,
     max_delay,
     max_delay_certificate,
 )
+from certify.bisection import SCAN_TRIES
 from certify.solve import set_solver_threads, solver_threads
 
 BENCHMARK_EXACT = 6.172581371  # arccos(-0.9) / sqrt(0.19)
@@ -143,11 +145,28 @@ def test_h_min_ends_a_search_that_finds_nothing_early(monkeypatch):
     to_the_end, count[0] = count[0], 0
     cert = max_delay_certificate(unstable, "rcc", channels="reduced", h_max=1.0, h_min=0.01)
     assert cert.margin == 0.0 and not cert.certified
-    assert count[0] <= 4 + math.ceil(math.log2(1.0 / 0.01)) < to_the_end
+    assert count[0] <= SCAN_TRIES + 1 < to_the_end  # the scan up, then h_min, then done
 
 
-def test_h_min_leaves_a_found_margin_alone(benchmark_system):
-    assert max_delay(benchmark_system, "rcc", h_min=0.1) == max_delay(benchmark_system, "rcc")
+def test_h_min_at_the_systems_time_scale_is_tried_first(monkeypatch):
+    unstable = LinearDelaySystem(np.array([[0.5]]), [np.array([[-0.1]])])  # guess 1 / 0.6 s
+    count = _counting_solves(monkeypatch)
+    cert = max_delay_certificate(unstable, "rcc", channels="reduced", h_max=10.0, h_min=2.0)
+    assert cert.margin == 0.0 and not cert.certified and count[0] == 1
+    assert cert.delay_bounds == (2.0,)
+
+
+@pytest.mark.parametrize("h_min", [0.1, 0.5])  # below and above the guess (0.43 s)
+def test_h_min_leaves_a_found_margin_alone(benchmark_system, h_min):
+    assert max_delay(benchmark_system, "rcc", h_min=h_min) == pytest.approx(
+        max_delay(benchmark_system, "rcc"), rel=1e-3)
+
+
+def test_h_min_tried_after_a_failed_guess_still_finds_the_margin(benchmark_system, monkeypatch):
+    expected = max_delay(benchmark_system, "rcc", rtol=1e-3)
+    monkeypatch.setattr(bisection, "_initial_guess", lambda system: 50.0)  # far above 1.87
+    found = max_delay(benchmark_system, "rcc", rtol=1e-3, h_min=0.1)
+    assert found == pytest.approx(expected, rel=2e-3)
 
 
 @pytest.mark.parametrize(
