@@ -28,7 +28,8 @@ def _method_names(method: str) -> tuple[str, ...]:
 
 
 def _problems(system: PolytopicDelaySystem, method: str, mu: float | None,
-              lower: tuple[float, ...], channels: str) -> list[LMIProblem]:
+              lower: tuple[float, ...], channels: str, retry: str = "always"
+              ) -> list[LMIProblem]:
     """The problems to try: each method, in each channel form (``"auto"``: both if they differ).
 
     The reduced form comes first: it is smaller, and where it certifies, the full form is only
@@ -40,7 +41,7 @@ def _problems(system: PolytopicDelaySystem, method: str, mu: float | None,
         modes = (channels,)
     else:
         raise ValueError(f"channels must be auto, {', '.join(MODES)}; got {channels!r}")
-    return [LMIProblem(system, get_method(name), mu, lower, mode)
+    return [LMIProblem(system, get_method(name), mu, lower, mode, retry)
             for name in _method_names(method) for mode in modes]
 
 
@@ -63,6 +64,7 @@ def certify_delay(
     *,
     lower: float | Sequence[float] = 0.0,
     channels: str = "auto",
+    retry: str = "always",
 ) -> Certificate:
     """Certify stability for given delay bounds, ``lower_i <= tau_i(t) <= h_i``.
 
@@ -85,6 +87,9 @@ def certify_delay(
         ``"auto"`` (default): the functional on the delayed signals ``y_i = C_i x``, then, if
         that fails and some ``A_i`` is rank-deficient, on the whole state
         (:mod:`certify.channels`); ``"reduced"`` or ``"full"`` for one form only.
+    retry : {"always", "accurate"}, optional
+        When a failed solve is tried again in balanced coordinates
+        (:class:`~certify.solve.LMIProblem`).
 
     Returns
     -------
@@ -101,7 +106,7 @@ def certify_delay(
     low = _checked_lower(lower, bounds)
     mu = check_mu(mu)
     cert: Certificate | None = None
-    for problem in _problems(poly, method, mu, low, channels):
+    for problem in _problems(poly, method, mu, low, channels, retry):
         cert = problem.solve(bounds)
         if cert.certified:
             break

@@ -20,7 +20,7 @@ from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_boun
 from certify.system import PolytopicDelaySystem
 from certify.system_data import SystemData, system_data
 
-__all__ = ["LMIProblem", "set_solver_threads", "solver_threads"]
+__all__ = ["RETRIES", "SHARED_FORMS", "LMIProblem", "set_solver_threads", "solver_threads"]
 
 SOLVER = "CLARABEL"
 _SETTINGS: dict[str, int] = {}
@@ -147,6 +147,9 @@ class _Form:
                                            bounds, self.mu)
 
 
+RETRIES = ("always", "accurate")
+"""Values of :class:`LMIProblem`'s ``retry``."""
+
 SHARED_FORMS = 16
 """Most problems a process keeps for systems of a structure it has solved before (the cells of
 a cover share one per number of points and coordinates): building and compiling one takes
@@ -251,10 +254,20 @@ class LMIProblem:
     channels : str, optional
         ``"reduced"`` (default): the functional acts on the delayed signals ``y_i = C_i x``
         (:mod:`certify.channels`); ``"full"``: on the whole state.
+    retry : {"always", "accurate"}, optional
+        When a bound that fails is tried again in balanced coordinates: after any failure
+        (default), or only after an accurate solve (status ``optimal``) whose margin or
+        re-check failed. A solve that ends ``optimal_inaccurate`` on a well scaled system is
+        rarely rescued by balancing; a caller that can split a failed problem instead (a
+        cover's cells) saves the second solve.
     """
 
     def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
-                 lower: float | Sequence[float] = 0.0, channels: str = "reduced") -> None:
+                 lower: float | Sequence[float] = 0.0, channels: str = "reduced",
+                 retry: str = "always") -> None:
+        if retry not in RETRIES:
+            raise ValueError(f"retry must be one of {', '.join(RETRIES)}, got {retry!r}")
+        self.retry = retry
         self.system = system
         self.lower = lower_bounds(lower, system.m)
         self.method = method.with_lower(self.lower)
@@ -309,7 +322,8 @@ class LMIProblem:
         form = self._forms[0]
         status, matrices, res = form.solve(bounds)
         certified = bool(res) and all(r >= RTOL for r in res.values())
-        balanced = None if certified else self._balanced()
+        skip = certified or (self.retry == "accurate" and status != cp.OPTIMAL)
+        balanced = None if skip else self._balanced()
         if balanced is not None:
             outcome = balanced.solve(bounds)
             if outcome[2] and all(r >= RTOL for r in outcome[2].values()):

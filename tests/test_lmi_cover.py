@@ -6,13 +6,17 @@ import numpy as np
 import pytest
 
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
-from teleopkit.certification import certify_gains
+from teleopkit.certification import certify_gains, cover
 from teleopkit.certification.cell_memo import CellMemo
-from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope
+from teleopkit.certification.closed_form import nuno_delay_margin, nuno_joint_margins, nuno_polytope
 from teleopkit.certification.cover import (
     CORNERS_AT_ONCE,
     LIMIT_RTOL,
+    PROBES,
     _check_alone,
+    _clip,
+    _solve_level,
+    _split_again,
     cover_certificate,
     cover_margin,
     limiting_vertex,
@@ -181,3 +185,25 @@ def test_corners_checked_alone_stop_at_the_first_batch_with_a_failure(one_joint)
     assert _check_alone(one_joint, actions, memo) == CORNERS_AT_ONCE
     assert memo.failed_vertex(GainPolytope.from_box(NARROW)) is not None
     assert memo.vertex(actions[-1]) is None  # never solved
+
+
+def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, monkeypatch):
+    monkeypatch.setenv("TELEOPKIT_WORKERS", "1")  # the fake solve below runs in this process
+    good = vertex_certificate(one_joint, np.array([5.0, 60.0]), 0.5, 0.5)
+    bad = vertex_certificate(one_joint, np.array([10.0, 30.0]), 5.0, 5.0)
+    assert good.certified and not bad.certified
+    whole = GainPolytope.from_box(NARROW)
+    quarters = _split_again(cover._halves(NARROW.lower, NARROW.upper))
+    todo = [(box, _clip(whole, *box)) for box in quarters]
+    promise = [nuno_joint_margins(one_joint, cell.vertices()).min() for _, cell in todo]
+    assert len(todo) == 4 > PROBES
+    for verdict, solves in ((bad, PROBES), (good, len(todo))):
+        calls: list[GainPolytope] = []
+        monkeypatch.setattr(cover, "lmi_certificate",
+                            lambda *args, v=verdict, seen=calls: seen.append(args[1]) or v)
+        known = [None] * len(todo)
+        memo = CellMemo(one_joint, (1.45, 1.45), LMI_METHOD, (0.0, 0.0))
+        assert _solve_level(one_joint, todo, known, list(range(len(todo))), memo) == solves
+        assert len(calls) == solves and sum(k is not None for k in known) == solves
+    probed = sorted(range(len(todo)), key=lambda k: -promise[k])[:PROBES]
+    assert calls[:PROBES] == [todo[k][1] for k in probed]  # the most promising first

@@ -48,10 +48,9 @@ from teleopkit.certification.lmi import (
 from teleopkit.certification.parallel import map_solves, workers
 from teleopkit.model.params import TeleoperatorParams
 
-__all__ = ["CELL_BUDGET", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "PROBES", "Cover",
-           "CoverMargin",
-           "cover_certificate", "cover_margin", "limiting_vertex", "set_certificate",
-           "vertex_margin"]
+__all__ = ["CELL_BUDGET", "CELL_RETRY", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "PROBES",
+           "Cover", "CoverMargin", "cover_certificate", "cover_margin", "limiting_vertex",
+           "set_certificate", "vertex_margin"]
 
 _log = logging.getLogger(__name__)
 
@@ -61,6 +60,11 @@ CELL_BUDGET = 400
 CORNERS_AT_ONCE = 2
 """Gain vertices a cover checks alone side by side before it looks at their verdicts (fixed, so
 a cover spends the same solves on every machine)."""
+
+CELL_RETRY = "accurate"
+"""A cell retries in balanced coordinates only after an accurate solve failed: on the paper's
+two-joint teleoperator no cell whose first solve ended ``optimal_inaccurate`` was certified by
+the retry (0 of 20), while a failed cell is split anyway."""
 
 PROBES = 2
 """Cells of a level solved first, the most promising ones: if one fails, the rest of the level
@@ -291,7 +295,8 @@ def _solve_level(params: TeleoperatorParams,
 
     def solve(indices: list[int]) -> list[Certificate]:
         solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
-                                                       "switching", method, delay_lower))
+                                                       "switching", method, delay_lower,
+                                                       CELL_RETRY))
                                     for k in indices])
         for k, cert in zip(indices, solved, strict=True):
             known[k] = cert

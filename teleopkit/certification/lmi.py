@@ -153,7 +153,8 @@ def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
 
 def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                     tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
-                    delay_lower: tuple[float, float] = NO_LOWER) -> Certificate:
+                    delay_lower: tuple[float, float] = NO_LOWER,
+                    retry: str = "always") -> Certificate:
     """Certify a gain polytope for the delay bounds ``(T_l*, T_r*)``.
 
     Parameters
@@ -170,6 +171,9 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         A :data:`certify.METHODS` name.
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)``: the delays lie in ``[T_i_min, T_i*]``.
+    retry : {"always", "accurate"}
+        When a failed solve is tried again in balanced coordinates
+        (:class:`certify.solve.LMIProblem`).
 
     Returns
     -------
@@ -177,7 +181,7 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         The LMI certificate (``certified`` is the verdict; solver failures are not certified).
     """
     return certify_delay(gain_set_system(params, polytope, variation), [tl_max, tr_max], method,
-                         lower=list(delay_lower), channels=CHANNELS)
+                         lower=list(delay_lower), channels=CHANNELS, retry=retry)
 
 
 def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,

@@ -45,3 +45,15 @@ def test_balancing_does_not_change_margins(benchmark_system, badly_scaled):
 
 def test_well_scaled_certificates_carry_no_scaling(benchmark_system):
     assert certify_delay(benchmark_system, 1.0, "rcc").scaling == ()
+
+
+def test_retry_accurate_skips_balancing_after_an_inaccurate_solve(badly_scaled):
+    raw_status = LMIProblem(badly_scaled, get_method("rcc"), None)._forms[0].solve((1.0,))[0]
+    assert raw_status == "optimal_inaccurate"  # the case the rule is about
+    assert certify_delay(badly_scaled, 1.0, "rcc", retry="always").certified
+    assert not certify_delay(badly_scaled, 1.0, "rcc", retry="accurate").certified
+
+
+def test_retry_must_be_known(benchmark_system):
+    with pytest.raises(ValueError, match="retry must be one of"):
+        certify_delay(benchmark_system, 1.0, "rcc", retry="sometimes")
