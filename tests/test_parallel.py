@@ -82,3 +82,23 @@ def test_the_worker_count_is_read_from_the_environment(monkeypatch):
     monkeypatch.setenv("TELEOPKIT_WORKERS", "many")
     with pytest.raises(ValueError, match="TELEOPKIT_WORKERS"):
         workers()
+
+
+STARTER = """
+from teleopkit.certification import parallel
+if __name__ == "__main__":
+    parallel.start_workers()
+    print("started", sorted(len(pool._processes) for pool in parallel._POOL.values()))
+    print(parallel.map_solves(pow, [(2, 3), (3, 2)]))
+"""
+
+
+@pytest.mark.parametrize(("count", "started"), [("2", "[2]"), ("1", "[]")])
+def test_workers_start_before_the_first_solves(tmp_path, count, started):
+    path = tmp_path / "starter.py"
+    path.write_text(textwrap.dedent(STARTER))
+    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": count},
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert f"started {started}" in done.stdout and "[8, 9]" in done.stdout

@@ -32,6 +32,7 @@ from teleopkit.certification.lmi import (
     lmi_delay_margin,
     vertex_certificate,
 )
+from teleopkit.certification.parallel import start_workers
 from teleopkit.certification.proof import certificate_proof, cover_proof, verify_proof
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
@@ -157,6 +158,7 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     kind = "frozen" if variation.kind == "frozen" else "switching"
     bounds = (tl_max, tr_max)
     whole = GainPolytope.from_box(box)
+    start_workers()  # while the first solves run here
     memo = CellMemo(params, bounds, method, delay_lower)  # shared by the covers of one question
     verdict = set_certificate(params, whole, tl_max, tr_max, kind, method,
                               delay_lower=delay_lower, memo=memo, root=(box.lower, box.upper))

@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 
 from certify.solve import set_solver_threads
 
-__all__ = ["map_solves", "workers"]
+__all__ = ["map_solves", "start_workers", "workers"]
 
 _T = TypeVar("_T")
 _POOL: dict[int, Executor] = {}
@@ -83,6 +83,29 @@ def _pool(count: int) -> Executor:
     return _POOL[count]
 
 
+def _ready() -> None:
+    """A task that does nothing: submitted to start a worker."""
+
+
+def _parallel(count: int) -> bool:
+    """Whether ``count`` solves can run on worker processes (else in this process)."""
+    return count > 1 and "forkserver" in multiprocessing.get_all_start_methods()
+
+
+def start_workers() -> None:
+    """Start the worker processes in the background, ready for the first parallel solves.
+
+    A worker takes a second or two to start (the fork server, then the LMI modules' imports);
+    started at the beginning of a certification, that overlaps its first solves, which run
+    in this process. Nothing happens with one worker or an unguarded main script.
+    """
+    count = workers()
+    if _parallel(count) and _main_is_guarded():
+        pool = _pool(count)
+        for _ in range(count):
+            pool.submit(_ready)
+
+
 def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]]) -> list[_T]:
     """``[solve(*task) for task in tasks]``, on the worker processes when there are several.
 
@@ -104,6 +127,6 @@ def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]]) -> li
                       "'if __name__ == \"__main__\":' guard, which worker processes need",
                       RuntimeWarning, stacklevel=2)
         count = 1
-    if count <= 1 or "forkserver" not in multiprocessing.get_all_start_methods():
+    if not _parallel(count):
         return [solve(*task) for task in tasks]
     return list(_pool(count).map(solve, *zip(*tasks, strict=True)))
