@@ -9,9 +9,12 @@ conservative on a wide cell but close to the frozen certificate on a narrow one.
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
 spent. After a level in which no cell is certified, the failed cells are split twice (the
-level between is skipped: its cells are nearly as wide and mostly fail too). The cells of one
-level of the split are solved together on the local cores
-(:mod:`~teleopkit.certification.parallel`).
+level between is skipped: its cells are nearly as wide and mostly fail too). A level of more
+than :data:`PROBES` cells first solves its most promising ones (largest closed-form margin at
+the weakest vertex); if one of them fails, the whole level is split without solving the rest,
+which would mostly fail too. The cells of one level of the split are solved together on the
+local cores (:mod:`~teleopkit.certification.parallel`), and a cell's LMI is retried in balanced
+coordinates only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.
 
 No LMI certifies a cell whose corner it cannot certify alone, and a corner alone is a smaller
 problem than a cell, so corners are checked before the cells that would need them: the one the
