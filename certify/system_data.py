@@ -53,6 +53,9 @@ class SystemData:
         The diagonal of ``Delta`` at each point of the parameter set, shape ``(d, r)``.
     outers : tuple
         Per point, ``delta delta^T`` (shape ``(r, r)``, separate so that problems stay DPP).
+    slots : tuple, optional
+        For parameters (:meth:`parameters`): the parameter of each relation and of ``left``,
+        with the flattened entries it holds; the other entries are structural zeros.
     """
 
     relations: tuple[Any, ...]
@@ -63,8 +66,6 @@ class SystemData:
     outers: tuple[Any, ...]
 
     slots: tuple[tuple[Any, np.ndarray], ...] = ()
-    """For parameters: the parameter of each relation and of ``left``, with the entries
-    (flattened) it holds; the other entries are structural zeros."""
 
     def structure(self) -> tuple[Any, ...]:
         """What two systems must share for one problem to serve both.
