@@ -98,9 +98,8 @@ class _Form:
     """
 
     def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
-                 channels: Channels, shared: bool = True) -> None:
+                 channels: Channels, data: SystemData, shared: bool = True) -> None:
         self.method, self.mu, self.channels, self.shared = method, mu, channels, shared
-        data = system_data(method, system, channels, mu)
         self.structure = data.structure()
         self.data = data.parameters() if shared else data
         self.vars = {
@@ -162,7 +161,7 @@ def _family(system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
             channels: Channels, scaling: NDArray[np.float64]) -> tuple[Any, ...]:
     """What systems must share before their forms are compared (structure, coordinates)."""
     unc = system.uncertainty
-    spread = () if unc is None else (unc.p, len(unc.points), tuple(np.isinf(unc.rates)))
+    spread = () if unc is None else (unc.p, len(unc.points), unc.scheduled)
     return (type(method).__name__, method.name, method.lower, mu, channels.r,
             channels.reduced, system.n, system.m, len(system.vertices), system.frozen, spread,
             scaling.tobytes())
@@ -178,15 +177,14 @@ def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | No
         data = form.data_for(system)
         if data is not None:
             return form, data
-    form = _Form(system, method, mu, channels)
+    data = system_data(method, system, channels, mu)
+    form = _Form(system, method, mu, channels, data)
     forms.append(form)
     while sum(len(f) for f in _SHARED.values()) > SHARED_FORMS:
         oldest = next(iter(_SHARED))
         _SHARED[oldest].pop(0)
         if not _SHARED[oldest]:
             del _SHARED[oldest]
-    data = form.data_for(system)
-    assert data is not None
     return form, data
 
 
@@ -213,8 +211,8 @@ class _Posed:
         if scaled.uncertainty is None or not scaled.uncertainty.scheduled:
             form, data = _shared_form(scaled, method, mu, channels, scaling)
         else:
-            form = _Form(scaled, method, mu, channels, shared=False)
             data = system_data(method, scaled, channels, mu)
+            form = _Form(scaled, method, mu, channels, data, shared=False)
         return cls(form, scaled, data, scaling)
 
     def solve(self, bounds: tuple[float, ...]
