@@ -124,13 +124,13 @@ def _locate(k: int, newest: int, frac: float, delay: float, dt: float,
     """Locate a delayed read in a channel's history (:class:`~teleopkit.delays.ChannelHistory`).
 
     ``k`` is the newest stored grid step (ring slot ``newest``), ``frac`` the read time minus
-    ``t_k`` and ``delay`` the delay, both in steps. Returns the ring slots ``(a, z)`` of the
+    ``t_k`` in steps and ``delay`` the delay in seconds. Returns the ring slots ``(a, z)`` of the
     interval's ends, the fraction ``u`` and length ``span`` of the interval, whether the read falls
     inside the current step (then the interval ends at the integrator's stage, not at slot ``z``)
     and whether it falls before ``t = 0`` (constant past). Indices stay inside the buffer
     whatever the delay.
     """
-    steps = k + frac - delay
+    steps = k + frac - delay / dt
     inside = steps >= k
     back = min(max(k - math.floor(steps), 0), length - 2)  # steps from t_k to the start
     a = newest - back + (length if back > newest else 0)
@@ -203,8 +203,8 @@ def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt
     qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
     th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
     length = hist.shape[2]
-    to_remote = _locate(k, newest, frac, delays[0, row, lane], dt, length)
-    to_local = _locate(k, newest, frac, delays[1, row, lane], dt, length)
+    to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
+    to_local = _locate(k, newest, frac, delays[row, 1, lane], dt, length)
     ql1_delayed = _interpolate(hist, lane, 0, 0, to_remote, ql1, dql1, initial)
     ql2_delayed = _interpolate(hist, lane, 0, 1, to_remote, ql2, dql2, initial)
     th1_delayed = _interpolate(hist, lane, 1, 0, to_local, th1, dth1, initial)
@@ -307,8 +307,8 @@ def _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt,
     lane = lo + w
     length = hist.shape[2]
     n = initial.shape[2]
-    to_remote = _locate(k, newest, frac, delays[0, row, lane], dt, length)
-    to_local = _locate(k, newest, frac, delays[1, row, lane], dt, length)
+    to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
+    to_local = _locate(k, newest, frac, delays[row, 1, lane], dt, length)
     for i in range(n):
         ql = _interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
         th = _interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
@@ -399,7 +399,7 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
     for w in range(width):
         lane = lo + w
         for c in range(2):
-            where = _locate(k, k % length, 0.0, delays[c, row, lane], dt, length)
+            where = _locate(k, k % length, 0.0, delays[row, c, lane], dt, length)
             for i in range(n):
                 out_delayed[p, lane, c, i] = _interpolate(
                     hist, lane, c, i, where, xs[b, 4 * n * c + i, w],
@@ -497,9 +497,8 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Integration step.
     substeps : int
         Integration steps per control period.
-    delays : ndarray, shape (2, 2 P substeps + 1, B)
-        Forward and backward delays, in integration steps, at every half step from the current
-        time.
+    delays : ndarray, shape (2 P substeps + 1, 2, B)
+        Forward and backward delays in seconds at every half step from the current time.
     qh, qh_gain : ndarray, shapes (2 P substeps + 1, n) and (B, n)
         The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
         with unit gains, times each scenario's gains ``G``).

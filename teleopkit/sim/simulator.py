@@ -142,8 +142,9 @@ class Simulator:
             return
         self._x = x
         self._initial = self._constant_past(x)
+        # reads before t = 0 take the constant past, so only step 0 (slot 0) needs a value
         self._hist = np.zeros((self.batch, 2, length, 2 * n))
-        self._hist[..., :n] = self._initial[:, :, None, :]
+        self._hist[:, :, 0, :n] = self._initial
 
     def initial_record(self) -> StepResult:
         """The record at ``t = 0`` (the delayed signals are the constant past)."""
@@ -167,17 +168,17 @@ class Simulator:
             Operator reference ``q_h(t)`` in radians, with each scenario's reference gains.
         """
         delays, unit = self._sample(times)
-        return np.moveaxis(delays, 0, -1), self.scenario.reference_gains[None] * unit[:, None]
+        return np.moveaxis(delays, 1, -1), self.scenario.reference_gains[None] * unit[:, None]
 
     def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Delays ``(2, S, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
+        """Delays ``(S, 2, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
 
         The reference of scenario ``b`` is ``G_b`` times the unit one (see
         :class:`~teleopkit.model.params.Operator`), so it is evaluated once, not once per scenario.
         """
-        delays = np.empty((2, times.size, self.batch))
-        delays[0] = self.scenario.forward.sample(times)
-        delays[1] = self.scenario.backward.sample(times)
+        delays = np.empty((times.size, 2, self.batch))
+        delays[:, 0] = self.scenario.forward.sample(times)
+        delays[:, 1] = self.scenario.backward.sample(times)
         unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
         return delays, unit[:, 0]
 
@@ -208,7 +209,7 @@ class Simulator:
     def _stage_inputs(self, periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Times, delays and unit reference at the next ``periods`` periods' stage times.
 
-        Shapes ``(S,)``, ``(2, S, B)`` and ``(S, n)``: every half step, ``S = 2 P substeps + 1``.
+        Shapes ``(S,)``, ``(S, 2, B)`` and ``(S, n)``: every half step, ``S = 2 P substeps + 1``.
 
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
@@ -227,7 +228,7 @@ class Simulator:
             self._inputs = cached
         first = 2 * (self._step - cached.step)
         window = slice(first, first + rows)
-        return cached.times[window], cached.delays[:, window], cached.unit[window]
+        return cached.times[window], cached.delays[window], cached.unit[window]
 
     def _sample_from_here(self, rows: int) -> _Inputs:
         """The inputs at ``rows`` stage times (half steps) from the current step."""
@@ -246,13 +247,12 @@ class Simulator:
         times, delays, unit = self._stage_inputs(periods)
         ends = slice(2 * self.substeps, None, 2 * self.substeps)
         out.t[:] = times[ends]
-        out.delays[:] = delays[:, ends].transpose(1, 2, 0)
+        out.delays[:] = delays[ends].transpose(0, 2, 1)
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
-                np.moveaxis(delays, 0, -1), reference_gains[None] * unit[:, None], gains)
+                delays.transpose(0, 2, 1), reference_gains[None] * unit[:, None], gains)
         else:
-            delays = delays / self.dt  # the kernel takes them in steps
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
                            self.substeps, delays, unit, reference_gains,
                            np.ascontiguousarray(gains), self._model, out.state, out.delayed)
