@@ -65,3 +65,22 @@ def test_constant_gains_are_recorded_without_a_copy_per_period():
     assert not run.gains.flags.writeable
     schedule = np.broadcast_to(GAINS, (50, 3, 4)).copy()
     assert Simulator(scenario).run(0.5, schedule).gains.flags.writeable
+
+
+def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypatch):
+    from teleopkit.sim import simulator
+
+    scenario = paper_scenarios(4, batch=3)
+    whole = Simulator(scenario).run(0.25, GAINS, chunk=0.25)
+    sim = Simulator(scenario)
+    # three periods' worth of delay values per call: 25 periods in calls of 3, 3, ..., 1
+    monkeypatch.setattr(simulator, "CALL_VALUES", 3 * 2 * sim.substeps * scenario.batch)
+    calls = []
+    integrate = sim._integrate
+    monkeypatch.setattr(sim, "_integrate", lambda g, out: (calls.append(g.shape[0]),
+                                                           integrate(g, out)))
+    pieces = sim.run(0.25, GAINS)
+    assert calls == [3] * 8 + [1]
+    np.testing.assert_array_equal(pieces.state, whole.state)
+    np.testing.assert_array_equal(pieces.delayed, whole.delayed)
+    np.testing.assert_array_equal(pieces.delays, whole.delays)

@@ -97,8 +97,7 @@ def static_cost(gains: np.ndarray, scenario: Scenario,
     gains = np.atleast_2d(np.asarray(gains, dtype=float))
     count, batch = gains.shape[0], scenario.batch
     sim = Simulator(_repeat(scenario, count), config.dt, config.control_period)
-    run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0),
-                  chunk=config.max_steps * config.control_period)
+    run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0))
     reward = config.weights.reward(run.e_track[1:], run.e_damp[1:], run.gains[1:])
     cost = -reward.sum(axis=0)
     failed = ~np.all(np.abs(run.state) <= config.state_bound, axis=(0, 2))
