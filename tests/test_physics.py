@@ -129,6 +129,26 @@ def test_accuracy_against_high_accuracy_reference(delay):
     assert positions.max() < 1e-6
 
 
+
+def test_integration_error_falls_as_the_fourth_power_of_the_step():
+    """RK4 with Hermite reads of the history: halving the step divides the error by 16."""
+    params = paper_setup()
+    gains = np.array([10.0, 10.0, 30.0, 30.0])
+    reference = np.array([1.0, -0.7])
+    delay = 0.2
+    errors, expected = [], None
+    for dt in (0.0025, 0.00125, 0.000625):
+        sim = Simulator(Scenario(params, ConstantDelay(delay), ConstantDelay(delay),
+                                 reference[None]), dt=dt, control_period=0.01)
+        trajectory = sim.run(2.0, gains)
+        if expected is None:  # the same output times at every step
+            expected = _method_of_steps(params, gains, reference, delay, trajectory.t)
+        error = np.abs(trajectory.state[:, 0, :12] - expected)
+        errors.append(error[:, [0, 1, 4, 5, 8, 9]].max())
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all((orders > 3.7) & (orders < 4.4)), orders
+    assert errors[1] < 1e-5  # the default step, 1.25 ms, meets 1e-5 rad
+
 def test_paper_scenario_with_certified_gains_is_stable_and_tracks():
     params = paper_setup()
     scenario = Scenario(params, FourierDelay(0.9), FourierDelay(1.0), np.array([[1.0, -0.8]]))
