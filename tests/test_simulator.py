@@ -84,3 +84,9 @@ def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypat
     np.testing.assert_array_equal(pieces.state, whole.state)
     np.testing.assert_array_equal(pieces.delayed, whole.delayed)
     np.testing.assert_array_equal(pieces.delays, whole.delays)
+
+
+@pytest.mark.parametrize("chunk", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_bad_chunk_is_refused(chunk):
+    with pytest.raises(ValueError, match="chunk must be a positive number of seconds"):
+        Simulator(paper_scenarios(0, batch=1)).run(0.1, GAINS, chunk=chunk)

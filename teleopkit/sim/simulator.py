@@ -321,8 +321,17 @@ class Simulator:
         -------
         Trajectory
             The run, from ``t = 0`` (initial row included).
+
+        Raises
+        ------
+        ValueError
+            If ``duration`` is not a whole number of periods, ``chunk`` is not positive, the
+            gains are negative, not finite or of the wrong shape, or the record would not fit
+            in memory.
         """
         periods = whole_periods(duration, self.control_period)
+        if chunk is not None and not (math.isfinite(chunk) and chunk > 0):
+            raise ValueError(f"chunk must be a positive number of seconds, got {chunk}")
         self.check_memory(periods)
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
