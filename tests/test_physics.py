@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -114,40 +115,42 @@ def _method_of_steps(params, gains, reference, delay: float, t_eval: np.ndarray)
     return np.array([past(t) if t > 0 else y0 for t in t_eval])
 
 
+ACCURACY_GAINS = np.array([10.0, 10.0, 30.0, 30.0])
+ACCURACY_REFERENCE = np.array([1.0, -0.7])
+
+
+@functools.cache
+def _reference_run(delay: float) -> np.ndarray:
+    """The method-of-steps solution every 10 ms over 2 s (computed once per delay)."""
+    return _method_of_steps(paper_setup(), ACCURACY_GAINS, ACCURACY_REFERENCE, delay,
+                            np.linspace(0.0, 2.0, 201))
+
+
+def _run_against_reference(delay: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position errors ``(q_l, q_r, theta)`` of a 2 s run at step ``dt``, every 10 ms, and the
+    reference's motor positions."""
+    sim = Simulator(Scenario(paper_setup(), ConstantDelay(delay), ConstantDelay(delay),
+                             ACCURACY_REFERENCE[None]), dt=dt, control_period=0.01)
+    expected = _reference_run(delay)
+    error = np.abs(sim.run(2.0, ACCURACY_GAINS).state[:, 0, :12] - expected)
+    return error[:, [0, 1, 4, 5, 8, 9]], expected[:, 8:10]
+
+
 @pytest.mark.parametrize("delay", [0.0, 0.2])
 def test_accuracy_against_high_accuracy_reference(delay):
-    params = paper_setup()
-    gains = np.array([10.0, 10.0, 30.0, 30.0])
-    reference = np.array([1.0, -0.7])
-    sim = Simulator(Scenario(params, ConstantDelay(delay), ConstantDelay(delay), reference[None]),
-                    dt=0.0005, control_period=0.01)
-    trajectory = sim.run(2.0, gains)
-    expected = _method_of_steps(params, gains, reference, delay, trajectory.t)
-    error = np.abs(trajectory.state[:, 0, :12] - expected)
-    positions = np.concatenate([error[:, 0:2], error[:, 4:6], error[:, 8:10]], axis=1)
-    assert np.abs(expected[:, 8:10]).max() > 0.1  # the arm really moves
+    positions, motors = _run_against_reference(delay, 0.0005)
+    assert np.abs(motors).max() > 0.1  # the arm really moves
     assert positions.max() < 1e-6
-
 
 
 def test_integration_error_falls_as_the_fourth_power_of_the_step():
     """RK4 with Hermite reads of the history: halving the step divides the error by 16."""
-    params = paper_setup()
-    gains = np.array([10.0, 10.0, 30.0, 30.0])
-    reference = np.array([1.0, -0.7])
-    delay = 0.2
-    errors, expected = [], None
-    for dt in (0.0025, 0.00125, 0.000625):
-        sim = Simulator(Scenario(params, ConstantDelay(delay), ConstantDelay(delay),
-                                 reference[None]), dt=dt, control_period=0.01)
-        trajectory = sim.run(2.0, gains)
-        if expected is None:  # the same output times at every step
-            expected = _method_of_steps(params, gains, reference, delay, trajectory.t)
-        error = np.abs(trajectory.state[:, 0, :12] - expected)
-        errors.append(error[:, [0, 1, 4, 5, 8, 9]].max())
-    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    errors = np.array([_run_against_reference(0.2, dt)[0].max()
+                       for dt in (0.0025, 0.00125, 0.000625)])
+    orders = np.log2(errors[:-1] / errors[1:])
     assert np.all((orders > 3.7) & (orders < 4.4)), orders
     assert errors[1] < 1e-5  # the default step, 1.25 ms, meets 1e-5 rad
+
 
 def test_paper_scenario_with_certified_gains_is_stable_and_tracks():
     params = paper_setup()

@@ -175,7 +175,7 @@ class Simulator:
             Operator reference ``q_h(t)`` in radians, with each scenario's reference gains.
         """
         delays, unit = self._sample(times)
-        return np.moveaxis(delays, 1, -1), self.scenario.reference_gains[None] * unit[:, None]
+        return delays.transpose(0, 2, 1), self.scenario.reference_gains[None] * unit[:, None]
 
     def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Delays ``(S, 2, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
@@ -301,6 +301,14 @@ class Simulator:
                              f"{free / 1e9:.3g} GB of memory available; simulate shorter runs "
                              "(Simulator.advance streams them)")
 
+    def _periods_per_call(self, chunk: float | None) -> int:
+        """Whole periods per kernel call of :meth:`run` (``chunk`` seconds, or the default)."""
+        if chunk is None:
+            return max(1, CALL_VALUES // (2 * self.substeps * self.batch))
+        if not (math.isfinite(chunk) and chunk > 0):
+            raise ValueError(f"chunk must be a positive number of seconds, got {chunk}")
+        return max(1, round(chunk / self.control_period))
+
     def run(self, duration: float, gains: np.ndarray | None = None,
             chunk: float | None = None) -> Trajectory:
         """Reset and simulate ``duration`` seconds, recording every control period.
@@ -330,8 +338,7 @@ class Simulator:
             in memory.
         """
         periods = whole_periods(duration, self.control_period)
-        if chunk is not None and not (math.isfinite(chunk) and chunk > 0):
-            raise ValueError(f"chunk must be a positive number of seconds, got {chunk}")
+        per_call = self._periods_per_call(chunk)
         self.check_memory(periods)
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
@@ -346,10 +353,8 @@ class Simulator:
         first, initial = record.rows(slice(0, 1)), self.initial_record()
         for field in fields(StepResult):
             getattr(first, field.name)[:] = getattr(initial, field.name)
-        per_chunk = (max(1, round(chunk / self.control_period)) if chunk is not None else
-                     max(1, CALL_VALUES // (2 * self.substeps * self.batch)))
-        for start in range(0, periods, per_chunk):
-            stop = min(start + per_chunk, periods)
+        for start in range(0, periods, per_call):
+            stop = min(start + per_call, periods)
             self._integrate(gains[start:stop], record.rows(slice(1 + start, 1 + stop)))
         in_force = (np.broadcast_to(gains[:1], (periods + 1, *gains.shape[1:])) if constant
                     else np.concatenate([gains[:1], gains]))
