@@ -9,14 +9,19 @@ blocks by constant offsets, which the comparison with the numpy integrator check
 Layout for speed (measured reasons in ``benchmarks/README.md``):
 
 - The batch is cut into blocks of :data:`LANES` scenarios, integrated in parallel (``prange``).
-  Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and the two-link
-  derivative is computed by a loop over lanes without calls or branches (the sine and cosine are
-  an inlined polynomial), which LLVM vectorises, gathering the delayed history reads.
-- That loop sits in the body of the parallel loop itself, and the scratch arrays are allocated
-  before it: numba then passes them to the body as ``noalias`` arguments, which the vectoriser
-  needs (a loop in a separately compiled callee, or on arrays allocated inside the body, stays
-  scalar). The helpers are ``forceinline`` and take whole arrays plus indices, never views or
-  tuples of arrays (both cost reference counting, and views alias).
+  Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and each RK4
+  stage runs three loops over lanes without calls or branches (the sine and cosine are an
+  inlined polynomial), which LLVM vectorises: the delayed history reads (gathers), the motion
+  (controllers, springs and the two arms' accelerations) and the integrands of the cost and
+  energy terms. One loop writing all the slopes stayed scalar (a derivative at batch 4096:
+  31 ns of motion and integrands in one loop, 10 ns in two).
+- Those loops sit in the body of the parallel loop itself: the block body is inlined there by
+  numba (``inline="always"``), and the scratch arrays are allocated before the loop, so numba
+  passes them to the body as ``noalias`` arguments, which the vectoriser needs. Inlined later
+  by LLVM (``forceinline``) the block body was optimised as a separate function and its loops
+  stayed scalar (60 ns per derivative at batch 4096 instead of 37). The other helpers are
+  ``forceinline`` and take whole arrays plus indices, never views or tuples of arrays (both
+  cost reference counting, and views alias).
 - Model constants are one plain array (:func:`kernel_model`); a tuple of arrays would be reference
   counted at every read.
 - Two-link arms use a closed-form inertia solve; other arms a generic scalar Cholesky path.
@@ -189,9 +194,8 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt, st, slopes, b, r,
-                   lo, w):
-    """Write the slopes ``slopes[b, r, :, w]`` of lane ``w`` of a two-link block at RK4 stage ``r``.
+def _two_link_delayed(hist, initial, delays, clock, frac, dt, st, delayed, b, lo, w):
+    """Write the delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` of lane ``w`` to ``delayed[b, :, w]``.
 
     The stage state is ``st[b, :, w]``; ``clock`` is ``(k, newest, row, p)``: newest stored grid
     step, its ring slot, input row of the stage time and control period; ``frac`` is the stage
@@ -199,22 +203,33 @@ def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt
     """
     k, newest, row, p = clock
     lane = lo + w
-    ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
-    qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
-    th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
     length = hist.shape[2]
     to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
     to_local = _locate(k, newest, frac, delays[row, 1, lane], dt, length)
-    ql1_delayed = _interpolate(hist, lane, 0, 0, to_remote, ql1, dql1, initial)
-    ql2_delayed = _interpolate(hist, lane, 0, 1, to_remote, ql2, dql2, initial)
-    th1_delayed = _interpolate(hist, lane, 1, 0, to_local, th1, dth1, initial)
-    th2_delayed = _interpolate(hist, lane, 1, 1, to_local, th2, dth2, initial)
-    local1, link1, ddth1 = _joint(m, 0, ql1, dql1, qr1, dqr1, th1, dth1, ql1_delayed, th1_delayed,
-                                  qh[row, 0] * qh_gain[lane, 0], gains[p, lane, 0],
-                                  gains[p, lane, 2])
-    local2, link2, ddth2 = _joint(m, 1, ql2, dql2, qr2, dqr2, th2, dth2, ql2_delayed, th2_delayed,
-                                  qh[row, 1] * qh_gain[lane, 1], gains[p, lane, 1],
-                                  gains[p, lane, 3])
+    delayed[b, 0, w] = _interpolate(hist, lane, 0, 0, to_remote, st[b, 0, w], st[b, 2, w], initial)
+    delayed[b, 1, w] = _interpolate(hist, lane, 0, 1, to_remote, st[b, 1, w], st[b, 3, w], initial)
+    delayed[b, 2, w] = _interpolate(hist, lane, 1, 0, to_local, st[b, 8, w], st[b, 10, w], initial)
+    delayed[b, 3, w] = _interpolate(hist, lane, 1, 1, to_local, st[b, 9, w], st[b, 11, w], initial)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, w):
+    """Write the motion slopes ``slopes[b, r, :12, w]`` of lane ``w`` of a two-link block.
+
+    The RK4 stage is ``r``, its state ``st[b, :, w]`` and its delayed reads ``delayed[b, :, w]``
+    (:func:`_two_link_delayed`); ``clock`` as there.
+    """
+    k, newest, row, p = clock
+    lane = lo + w
+    ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
+    qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
+    th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
+    local1, link1, ddth1 = _joint(m, 0, ql1, dql1, qr1, dqr1, th1, dth1, delayed[b, 0, w],
+                                  delayed[b, 2, w], qh[row, 0] * qh_gain[lane, 0],
+                                  gains[p, lane, 0], gains[p, lane, 2])
+    local2, link2, ddth2 = _joint(m, 1, ql2, dql2, qr2, dqr2, th2, dth2, delayed[b, 1, w],
+                                  delayed[b, 3, w], qh[row, 1] * qh_gain[lane, 1],
+                                  gains[p, lane, 1], gains[p, lane, 3])
     ddql1, ddql2 = _two_link_acceleration(m, 0, ql2, dql1, dql2, local1, local2)
     ddqr1, ddqr2 = _two_link_acceleration(m, 1, qr2, dqr1, dqr2, link1, link2)
     slopes[b, r, 0, w], slopes[b, r, 1, w] = dql1, dql2
@@ -223,12 +238,18 @@ def _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt
     slopes[b, r, 6, w], slopes[b, r, 7, w] = ddqr1, ddqr2
     slopes[b, r, 8, w], slopes[b, r, 9, w] = dth1, dth2
     slopes[b, r, 10, w], slopes[b, r, 11, w] = ddth1, ddth2
-    slopes[b, r, 12, w], slopes[b, r, 13, w] = th1 - ql1_delayed, th2 - ql2_delayed
-    slopes[b, r, 14, w], slopes[b, r, 15, w] = th1 - qr1, th2 - qr2
-    slopes[b, r, 16, w], slopes[b, r, 17, w] = dql1 * dql1, dql2 * dql2
-    slopes[b, r, 18, w], slopes[b, r, 19, w] = st[b, 16, w], st[b, 17, w]
-    slopes[b, r, 20, w], slopes[b, r, 21, w] = dth1 * dth1, dth2 * dth2
-    slopes[b, r, 22, w], slopes[b, r, 23, w] = st[b, 20, w], st[b, 21, w]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _two_link_integrands(st, delayed, slopes, b, r, w):
+    """Write the slopes ``slopes[b, r, 12:, w]`` of the integrals (the cost and energy terms)."""
+    for i in range(2):
+        slopes[b, r, 12 + i, w] = st[b, 8 + i, w] - delayed[b, i, w]
+        slopes[b, r, 14 + i, w] = st[b, 8 + i, w] - st[b, 4 + i, w]
+        slopes[b, r, 16 + i, w] = st[b, 2 + i, w] * st[b, 2 + i, w]
+        slopes[b, r, 18 + i, w] = st[b, 16 + i, w]
+        slopes[b, r, 20 + i, w] = st[b, 10 + i, w] * st[b, 10 + i, w]
+        slopes[b, r, 22 + i, w] = st[b, 20 + i, w]
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -408,9 +429,9 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
             out_state[p, lane, v] = xs[b, v, w]
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
-                   out_delayed, xs, st, slopes, work, b, lo, width):
+                   out_delayed, xs, st, slopes, work, delayed, b, lo, width):
     """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period."""
     dim = xs.shape[1]
     length = hist.shape[2]
@@ -422,13 +443,17 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, g
                 clock = (k, newest, 2 * (p * substeps + s) + (r + 1) // 2, p)
                 frac = _STAGE_FRACTIONS[r]
                 _stage_state(xs, slopes, st, b, r, frac * dt, width)
-                # The loops over lanes stay in the parallel body (this helper is inlined),
-                # where LLVM vectorises them (the arrays are noalias there, not in a separately
-                # compiled callee).
+                # The loops over lanes stay in the parallel body (this helper is inlined there
+                # by numba), where LLVM vectorises them (module notes).
                 if dim == 2 * BLOCKS:
                     for w in range(width):
-                        _two_link_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
-                                       frac, dt, st, slopes, b, r, lo, w)
+                        _two_link_delayed(hist, initial, delays, clock, frac, dt, st, delayed,
+                                          b, lo, w)
+                    for w in range(width):
+                        _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r,
+                                       lo, w)
+                    for w in range(width):
+                        _two_link_integrands(st, delayed, slopes, b, r, w)
                 else:
                     for w in range(width):
                         _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
@@ -444,7 +469,8 @@ def _scratch(blocks, dim):
     """Per-block state, stage state, the four RK4 slopes and the generic path's work rows."""
     n = dim // BLOCKS
     return (np.empty((blocks, dim, LANES)), np.empty((blocks, dim, LANES)),
-            np.empty((blocks, 4, dim, LANES)), np.empty((blocks, n + 5, n)))
+            np.empty((blocks, 4, dim, LANES)), np.empty((blocks, n + 5, n)),
+            np.empty((blocks, 2 * n, LANES)))
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -454,13 +480,13 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gain
     blocks = (batch + LANES - 1) // LANES
     # The scratch is allocated outside the parallel loop so that it reaches it as noalias
     # arguments.
-    xs, st, slopes, work = _scratch(blocks, dim)
+    xs, st, slopes, work, delayed = _scratch(blocks, dim)
     for b in prange(blocks):
         lo = b * LANES
         width = min(LANES, batch - lo)
         _transfer(x, xs, b, lo, width, True)
         _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
-                       out_state, out_delayed, xs, st, slopes, work, b, lo, width)
+                       out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width)
         _transfer(x, xs, b, lo, width, False)
 
 
@@ -468,10 +494,10 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gain
 def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
                     out_state, out_delayed):
     """:func:`_advance` for one scenario, without the parallel loop's launch."""
-    xs, st, slopes, work = _scratch(1, x.shape[1])
+    xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
     _transfer(x, xs, 0, 0, 1, True)
     _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
-                   out_state, out_delayed, xs, st, slopes, work, 0, 0, 1)
+                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1)
     _transfer(x, xs, 0, 0, 1, False)
 
 
