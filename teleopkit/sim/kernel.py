@@ -195,13 +195,13 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _two_link_delayed(hist, initial, delays, clock, frac, dt, st, delayed, b, lo, w):
-    """Write the delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` of lane ``w`` to ``delayed[b, :, w]``.
+    """Write lane ``w``'s delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` to ``delayed[b, :, w]``.
 
     The stage state is ``st[b, :, w]``; ``clock`` is ``(k, newest, row, p)``: newest stored grid
     step, its ring slot, input row of the stage time and control period; ``frac`` is the stage
     time minus ``t_k`` in steps and ``lo`` the block's first scenario.
     """
-    k, newest, row, p = clock
+    k, newest, row, _ = clock
     lane = lo + w
     length = hist.shape[2]
     to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
@@ -219,7 +219,7 @@ def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, 
     The RK4 stage is ``r``, its state ``st[b, :, w]`` and its delayed reads ``delayed[b, :, w]``
     (:func:`_two_link_delayed`); ``clock`` as there.
     """
-    k, newest, row, p = clock
+    _, _, row, p = clock
     lane = lo + w
     ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
     qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
