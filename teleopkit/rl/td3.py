@@ -49,9 +49,9 @@ All randomness goes through generators owned by the objects (a ``torch.Generator
 initialisation and target smoothing, a numpy ``Generator`` for the replay buffer), never through
 the global RNGs, and is part of the state dicts.
 
-Threads: a batch-512 update is about 8 ms of dense arithmetic on one core (118 updates/s; 158
-with a second, otherwise idle core: ``benchmarks/bench_agent.py``). Training also steps the
-simulator, and on a shared 2-core machine the second core is taken, so the command line and the
+Threads: a batch-512 update takes about 5 ms on one core (about 200 updates/s; a second,
+otherwise idle core adds 6 %: ``benchmarks/bench_agent.py``). Training also steps the
+simulator, which needs the second core on a 2-core machine, so the command line and the
 examples call ``torch.set_num_threads(1)``.
 """
 
