@@ -24,6 +24,7 @@ from teleopkit.model.params import (
     PDGains,
     TeleoperatorParams,
 )
+from teleopkit.sim import kernel
 from teleopkit.sim.kernel import LANES
 
 
@@ -82,3 +83,31 @@ def test_short_and_zero_delays(delay):
     sims = [Simulator(scenario, backend=b) for b in ("compiled", "numpy")]
     results = [sim.run(0.5) for sim in sims]
     np.testing.assert_allclose(results[0].state, results[1].state, rtol=0, atol=1e-10)
+
+
+def test_batched_two_links_with_reads_inside_the_step(rng):
+    # delays from 0 to 50 ms: some stages read inside the current step (from the stage state)
+    forward = SwitchingDelay(0.0, 0.05, dwell=0.0037, mode="extremes", seed=7, batch=LANES + 1)
+    backward = SwitchingDelay(0.0005, 0.03, dwell=0.002, seed=8, batch=LANES + 1)
+    scenario = replace(paper_scenarios(rng, batch=LANES + 1), forward=forward, backward=backward)
+    _compare(scenario, rng.uniform(1.0, 50.0, size=(30, LANES + 1, 4)), 30)
+
+
+def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch):
+    # delays longer than the step: a stage reuses the reads of the stage at the same time
+    forward = SwitchingDelay(0.002, 0.05, dwell=0.0037, seed=9, batch=LANES + 1)
+    scenario = replace(paper_scenarios(rng, batch=LANES + 1), forward=forward)
+    gains = rng.uniform(1.0, 50.0, size=(30, LANES + 1, 4))
+    real, flags = kernel._advance, []
+
+    def forced(*args, reuse=None):
+        flags.append(args[-1] if reuse is None else reuse)
+        return real(*args[:-1], flags[-1])
+
+    monkeypatch.setattr(kernel, "_advance", forced)
+    reused = Simulator(scenario).advance(gains)
+    monkeypatch.setattr(kernel, "_advance", lambda *args: forced(*args, reuse=False))
+    computed = Simulator(scenario).advance(gains)
+    assert flags == [True, False]
+    np.testing.assert_array_equal(reused.state, computed.state)
+    np.testing.assert_array_equal(reused.delayed, computed.delayed)
