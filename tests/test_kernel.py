@@ -98,16 +98,18 @@ def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch):
     forward = SwitchingDelay(0.002, 0.05, dwell=0.0037, seed=9, batch=LANES + 1)
     scenario = replace(paper_scenarios(rng, batch=LANES + 1), forward=forward)
     gains = rng.uniform(1.0, 50.0, size=(30, LANES + 1, 4))
-    real, flags = kernel._advance, []
-
-    def forced(*args, reuse=None):
-        flags.append(args[-1] if reuse is None else reuse)
-        return real(*args[:-1], flags[-1])
-
-    monkeypatch.setattr(kernel, "_advance", forced)
     reused = Simulator(scenario).advance(gains)
-    monkeypatch.setattr(kernel, "_advance", lambda *args: forced(*args, reuse=False))
+    real = kernel._advance
+    monkeypatch.setattr(kernel, "_advance", lambda *args: real(*args[:-1], False))
     computed = Simulator(scenario).advance(gains)
-    assert flags == [True, False]
     np.testing.assert_array_equal(reused.state, computed.state)
     np.testing.assert_array_equal(reused.delayed, computed.delayed)
+
+
+def test_reads_are_reused_only_when_every_delay_exceeds_the_step():
+    delays = np.full((17, 2, 3), 0.002)
+    assert kernel._delays_exceed(delays, 0.00125)
+    for short in (0.00125, 0.0, np.nan):
+        delays[5, 1, 2] = short
+        assert not kernel._delays_exceed(delays, 0.00125)
+        assert kernel._delays_exceed(delays[:, :, :2], 0.00125)

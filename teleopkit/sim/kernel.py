@@ -433,15 +433,24 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
             out_state[p, lane, v] = xs[b, v, w]
 
 
+@njit(cache=True, error_model="numpy")
+def _delays_exceed(delays, dt):
+    """Whether every entry of ``delays`` exceeds ``dt`` (none is NaN)."""
+    for delay in delays.flat:
+        if not delay > dt:
+            return False
+    return True
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
                    out_delayed, xs, st, slopes, work, delayed, b, lo, width, reuse):
     """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period.
 
-    With ``reuse`` (every delay of the call longer than ``dt``) no delayed read falls inside the
-    current step, so a read depends on the stage time only: the second midpoint stage reuses
-    the first's reads and a step's first stage the previous step's last (the same times and
-    delay samples, hence the same values bit for bit).
+    With ``reuse`` (every delay of the call is longer than ``dt``: :func:`_delays_exceed`) no
+    delayed read falls inside the current step, so a read depends on the stage time only: the
+    second midpoint stage reuses the first's reads and a step's first stage the previous step's
+    last (the same times and delay samples, hence the same values bit for bit).
     """
     dim = xs.shape[1]
     length = hist.shape[2]
@@ -492,6 +501,8 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gain
     # The scratch is allocated outside the parallel loop so that it reaches it as noalias
     # arguments.
     xs, st, slopes, work, delayed = _scratch(blocks, dim)
+    # Before the parallel loop: a call on an array inside its body would cost the noalias flag.
+    reuse = reuse and _delays_exceed(delays, dt)
     for b in prange(blocks):
         lo = b * LANES
         width = min(LANES, batch - lo)
@@ -509,7 +520,8 @@ def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gai
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
     _transfer(x, xs, 0, 0, 1, True)
     _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
-                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
+                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1,
+                   reuse and _delays_exceed(delays, dt))
     _transfer(x, xs, 0, 0, 1, False)
 
 
@@ -549,8 +561,9 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
     out_delayed : ndarray, shape (P, B, 2, n)
         Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
     """
+    # the last argument allows reusing delayed reads (the tests turn it off to compare)
     args = (model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
-            out_delayed, bool(delays.min() > dt))
+            out_delayed, True)
     if x.shape[0] == 1:  # one scenario: the parallel launch and thread cap cost a fifth
         _advance_single(*args)
         return
