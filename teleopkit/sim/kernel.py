@@ -13,13 +13,14 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
   stage runs three loops over lanes without calls or branches (the sine and cosine are an
   inlined polynomial), which LLVM vectorises: the delayed history reads (gathers), the motion
   (controllers, springs and the two arms' accelerations) and the integrands of the cost and
-  energy terms. One loop writing all the slopes stayed scalar (a derivative at batch 4096:
-  31 ns of motion and integrands in one loop, 10 ns in two).
+  energy terms. One loop writing all the slopes stayed scalar (motion and integrands of one
+  derivative, timed alone at batch 4096 on one thread: 31 ns in one loop, 10 ns in two).
 - Those loops sit in the body of the parallel loop itself: the block body is inlined there by
   numba (``inline="always"``), and the scratch arrays are allocated before the loop, so numba
   passes them to the body as ``noalias`` arguments, which the vectoriser needs. Inlined later
   by LLVM (``forceinline``) the block body was optimised as a separate function and its loops
-  stayed scalar (60 ns per derivative at batch 4096 instead of 37). The other helpers are
+  stayed scalar (a whole derivative evaluation at batch 4096 on one thread: 60 ns, 37 ns
+  inlined by numba). The other helpers are
   ``forceinline`` and take whole arrays plus indices, never views or tuples of arrays (both
   cost reference counting, and views alias).
 - When every delay of a call exceeds the step (no read falls inside the current step), a delayed
