@@ -20,9 +20,8 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
   passes them to the body as ``noalias`` arguments, which the vectoriser needs. Inlined later
   by LLVM (``forceinline``) the block body was optimised as a separate function and its loops
   stayed scalar (a whole derivative evaluation at batch 4096 on one thread: 60 ns, 37 ns
-  inlined by numba). The other helpers are
-  ``forceinline`` and take whole arrays plus indices, never views or tuples of arrays (both
-  cost reference counting, and views alias).
+  inlined by numba). The other helpers are ``forceinline`` and take whole arrays plus indices,
+  never views or tuples of arrays (both cost reference counting, and views alias).
 - When every delay of a call exceeds the step (no read falls inside the current step), a delayed
   read depends on the stage time only, and a two-link block reads the history at two of the four
   RK4 stages: the second midpoint stage and the next step's first stage reuse the reads of the
@@ -519,10 +518,10 @@ def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gai
                     out_state, out_delayed, reuse):
     """:func:`_advance` for one scenario, without the parallel loop's launch."""
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
+    reuse = reuse and _delays_exceed(delays, dt)
     _transfer(x, xs, 0, 0, 1, True)
     _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
-                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1,
-                   reuse and _delays_exceed(delays, dt))
+                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
     _transfer(x, xs, 0, 0, 1, False)
 
 
