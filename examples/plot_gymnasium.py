@@ -101,7 +101,7 @@ print("unsafe actions so far:", core.unsafe_actions)
 
 # %%
 # Rewards ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)`` of both episodes (the
-# weights are :class:`teleopkit.rl.env.RewardWeights`): the opening transient dominates the
+# weights are :class:`teleopkit.rl.scoring.RewardWeights`): the opening transient dominates the
 # first seconds, then the random gains keep costing while the constant ones settle.
 t = 0.01 * np.arange(1, len(rewards) + 1)
 fig, ax = plt.subplots(figsize=(7, 3), layout="constrained")

@@ -90,3 +90,14 @@ def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypat
 def test_a_bad_chunk_is_refused(chunk):
     with pytest.raises(ValueError, match="chunk must be a positive number of seconds"):
         Simulator(paper_scenarios(0, batch=1)).run(0.1, GAINS, chunk=chunk)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, -1e-9])
+def test_gains_that_are_not_finite_and_non_negative_are_refused(bad):
+    simulator = Simulator(paper_scenarios(0, batch=3))
+    gains = np.full((2, 3, 4), 10.0)
+    gains[1, 2, 3] = bad
+    with pytest.raises(ValueError, match="finite and non-negative"):
+        simulator.advance(gains)
+    assert simulator.time == 0.0  # nothing was simulated
+    simulator.advance(np.zeros(4))  # zero gains are admissible

@@ -1,7 +1,8 @@
 """Learning: the Gymnasium environments, TD3, the numpy policy, training, evaluation, baselines.
 
 :mod:`~teleopkit.rl.env` holds the environments (registered as ``teleopkit/FlexTeleop-v0`` by
-:mod:`~teleopkit.rl.registration`); :mod:`~teleopkit.rl.td3` is the learner, built from
+:mod:`~teleopkit.rl.registration`), which observe and reward the agent with
+:mod:`~teleopkit.rl.scoring`; :mod:`~teleopkit.rl.td3` is the learner, built from
 :mod:`~teleopkit.rl.networks`, :mod:`~teleopkit.rl.torch_projection` and
 :mod:`~teleopkit.rl.replay`; :mod:`~teleopkit.rl.policy` is a trained actor in numpy;
 :mod:`~teleopkit.rl.training` runs training, :mod:`~teleopkit.rl.evaluation` compares
@@ -16,7 +17,7 @@ _EXPORTS = {
     "FlexTeleopConfig": "env",
     "FlexTeleopEnv": "env",
     "FlexTeleopVectorEnv": "env",
-    "RewardWeights": "env",
+    "RewardWeights": "scoring",
     "GainPolicy": "policy",
     "TD3": "td3",
     "TD3Config": "td3",

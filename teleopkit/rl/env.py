@@ -10,8 +10,9 @@ Per control period (10 ms by default) the agent proposes remote gains
 simulator (:class:`~teleopkit.safety.CertifiedLoop`), and the environment counts applied actions
 outside the certified set (:attr:`FlexTeleopEnv.unsafe_actions`, which must stay 0).
 
-Observation (``7 n`` values, the paper's Section III with the damping error written
-``theta_r - q_r``; the paper's eq. 6 has a typo) at the end of each period::
+Observation (``7 n`` values, :func:`~teleopkit.rl.scoring.observation`: the paper's Section III
+with the damping error written ``theta_r - q_r``; the paper's eq. 6 has a typo) at the end of
+each period::
 
     [theta_r, theta_r', q_l(t - T_l), e_track, int e_track, e_damp, int e_damp]
 
@@ -42,6 +43,7 @@ from teleopkit.certification.analysis import default_certificate
 from teleopkit.certification.certificate import GainCertificate
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.rl.registration import ENV_ID
+from teleopkit.rl.scoring import RewardWeights, observation, score
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
 from teleopkit.sim.scenarios import (
@@ -57,71 +59,12 @@ from teleopkit.sim.trajectory import StepResult
 
 __all__ = [
     "ENV_ID",
-    "OBSERVATION",
     "BatchStep",
     "FlexTeleopConfig",
     "FlexTeleopEnv",
     "FlexTeleopVectorEnv",
-    "RewardWeights",
     "TeleopBatch",
-    "observation",
 ]
-
-
-@dataclass(frozen=True)
-class RewardWeights:
-    """Weights of the reward ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
-
-    The defaults make the three terms equal on average under the paper's fixed gains
-    ``K_r = 10, B_r = 30`` on the paper scenario (16 scenarios of 40 s, seed 0), so each is about a
-    third of the reward and the reward is about -3 per step there. Measured per-step means:
-    ``||e_track||^2 = 0.0635 rad^2``, ``||e_damp||^2 = 1.29e-4 rad^2`` and ``||a||^2 = 2000``,
-    hence ``alpha = 16 ~ 1/0.0635``, ``beta = 8000 ~ 1/1.29e-4`` and ``gamma = 5e-4 = 1/2000``.
-    The damping error is concentrated in the first seconds (the initial deflection
-    ``q_r(0) != theta_r(0)`` rings down; afterwards it is about 1e-8 rad^2), the tracking error
-    follows the operator's decaying motion, and the gain term prices stiff, heavily damped
-    settings (``||a||^2`` ranges from about 15 to 50 000 over the default box).
-
-    Parameters
-    ----------
-    alpha : float
-        Weight of the squared tracking error ``theta_r - q_l(t - T_l)``.
-    beta : float
-        Weight of the squared damping error ``theta_r - q_r``.
-    gamma : float
-        Weight of the squared applied gains.
-    """
-
-    alpha: float = 16.0
-    beta: float = 8000.0
-    gamma: float = 5e-4
-
-    def __post_init__(self) -> None:
-        for name in ("alpha", "beta", "gamma"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"reward weight {name} must be finite and >= 0, got {value}")
-
-    def reward(self, e_track: np.ndarray, e_damp: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """Reward of each scenario.
-
-        Parameters
-        ----------
-        e_track : ndarray, shape (..., n)
-            Tracking error.
-        e_damp : ndarray, shape (..., n)
-            Damping error.
-        action : ndarray, shape (..., 2 n)
-            Applied gains.
-
-        Returns
-        -------
-        ndarray, shape (...)
-            ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
-        """
-        return -(self.alpha * (e_track * e_track).sum(axis=-1)
-                 + self.beta * (e_damp * e_damp).sum(axis=-1)
-                 + self.gamma * (action * action).sum(axis=-1))
 
 
 @dataclass(frozen=True)
@@ -178,34 +121,6 @@ class FlexTeleopConfig:
 def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:
     """``config`` (default settings if None) with the given fields replaced."""
     return replace(config if config is not None else FlexTeleopConfig(), **overrides)
-
-
-OBSERVATION = ("theta", "dtheta", "ql_delayed", "e_track", "int_e_track", "e_damp",
-               "int_e_damp")
-"""Blocks of an observation (``n`` values each), in order."""
-
-
-def observation(state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
-    """The paper's observation of a batch of simulator states (the agent's input).
-
-    Parameters
-    ----------
-    state : ndarray, shape (B, 12 n)
-        Simulator states (:class:`~teleopkit.sim.state.StateLayout`).
-    delayed_ql : ndarray, shape (B, n)
-        Local positions as received by the remote side, ``q_l(t - T_l(t))``.
-
-    Returns
-    -------
-    ndarray, shape (B, 7 n)
-        The blocks of :data:`OBSERVATION`: ``[theta, theta', q_l(t - T_l),
-        theta - q_l(t - T_l), int e_track, theta - q_r, int e_damp]``.
-    """
-    layout = StateLayout.of(state)
-    theta = layout.get(state, "theta")
-    return np.concatenate([theta, layout.get(state, "dtheta"), delayed_ql, theta - delayed_ql,
-                           layout.get(state, "int_track"), theta - layout.get(state, "qr"),
-                           layout.get(state, "int_damp")], axis=-1)
 
 
 class BatchStep(NamedTuple):
@@ -302,12 +217,13 @@ class TeleopBatch:
             raise ValueError(f"scenario has {scenario.batch} runs, the batch {self.batch}")
         state = self.loop.start(Simulator(scenario, self.config.dt, self.config.control_period))
         self.steps = 0
-        return self._observe(state, StateLayout.of(state).get(state, "ql"))
+        return self._observe(observation(state, StateLayout.of(state).get(state, "ql")))
 
-    def _observe(self, state: np.ndarray, delayed_ql: np.ndarray) -> np.ndarray:
+    def _observe(self, obs: np.ndarray) -> np.ndarray:
         """The paper's observation, then the safety layer's run-time state (if it keeps one)."""
-        return np.concatenate([observation(state, delayed_ql),
-                               self.layer.run_time_state(self.batch)], axis=1)
+        if not self.layer.stateful:
+            return obs
+        return np.concatenate([obs, self.layer.run_time_state(self.batch)], axis=1)
 
     def step(self, raw: np.ndarray) -> BatchStep:
         """Project, simulate and score one period.
@@ -326,13 +242,12 @@ class TeleopBatch:
         result, projection = self.loop.step(raw)
         applied = projection.action
         self.steps += 1
-        state = result.state[0]
-        obs = self._observe(state, result.delayed[0, :, 0])
-        reward = self.config.weights.reward(result.e_track[0], result.e_damp[0], applied)
         bound = self.config.state_bound
-        failed = ~(np.abs(state) <= bound).all(axis=1)
-        if failed.any():
-            reward = np.where(failed, -self.config.failure_penalty, reward)
+        obs, reward, failed, failures = score(result.state[0], result.delayed[0, :, 0], applied,
+                                              self.config.weights, bound)
+        obs = self._observe(obs)
+        if failures:
+            reward[failed] = -self.config.failure_penalty
             obs = np.clip(np.nan_to_num(obs), -bound, bound)
         truncated = np.full(self.batch, self.steps >= self.config.max_steps) & ~failed
         info = {"raw_action": raw, "applied_action": applied,

@@ -65,7 +65,8 @@ def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
     if gains.shape[-1:] != (2 * n_joints,):
         raise ValueError(f"remote gains need {2 * n_joints} values [K_r..., B_r...] on the last "
                          f"axis, got shape {gains.shape}")
-    if not (np.isfinite(gains).all() and (gains >= 0).all()):
+    # min and max propagate NaN: one test each covers NaN, inf and negative values
+    if gains.size and not (gains.min() >= 0 and gains.max() < math.inf):
         raise ValueError("remote gains must be finite and non-negative")
     return gains
 
@@ -84,6 +85,13 @@ class Simulator:
     backend : {"compiled", "numpy"}
         The numba kernel or the readable numpy integrator.
 
+    Attributes
+    ----------
+    batch : int
+        Number of scenarios ``B``.
+    n_joints : int
+        Number of joints per arm.
+
     Examples
     --------
     >>> from teleopkit.sim.scenarios import paper_scenarios
@@ -99,6 +107,8 @@ class Simulator:
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
         self.scenario = scenario
+        self.batch = scenario.batch
+        self.n_joints = scenario.params.n_joints
         self.dt = dt
         self.control_period = control_period
         self.backend = backend
@@ -106,16 +116,6 @@ class Simulator:
         self._model = kernel.kernel_model(scenario.params)
         self._inputs: _Inputs | None = None
         self.reset()
-
-    @property
-    def batch(self) -> int:
-        """Number of scenarios."""
-        return self.scenario.batch
-
-    @property
-    def n_joints(self) -> int:
-        """Number of joints per arm."""
-        return self.scenario.params.n_joints
 
     @property
     def time(self) -> float:
