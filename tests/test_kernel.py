@@ -10,6 +10,7 @@ import pytest
 
 from teleopkit import (
     ConstantDelay,
+    FourierDelay,
     PlanarArm,
     Scenario,
     Simulator,
@@ -113,3 +114,19 @@ def test_reads_are_reused_only_when_every_delay_exceeds_the_step():
         delays[5, 1, 2] = short
         assert not kernel._delays_exceed(delays, 0.00125)
         assert kernel._delays_exceed(delays[:, :, :2], 0.00125)
+
+
+def test_a_scenario_gives_the_same_bits_alone_and_in_any_lane_of_a_batch():
+    """No fused multiply-adds or reassociation: one scenario's run does not depend on the batch
+    it runs in (alone, in a full block, in the partial last block)."""
+    params = paper_scenarios(0, batch=1).params
+    gains = np.array([[1.0, 0.7]])
+
+    def run(batch: int) -> np.ndarray:
+        scenario = Scenario(params, FourierDelay(1.0), FourierDelay(0.8),
+                            np.repeat(gains, batch, axis=0))
+        return Simulator(scenario).run(5.0, np.array([10.0, 10.0, 30.0, 30.0])).state
+
+    alone, batched = run(1)[:, 0], run(LANES + 6)
+    for lane in (0, LANES - 1, LANES, LANES + 5):
+        np.testing.assert_array_equal(batched[:, lane], alone)
