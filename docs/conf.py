@@ -94,6 +94,10 @@ linkcheck_ignore = [] if intersphinx_mapping else [r"https?://"]
 
 # -- autosummary: a page per public object (docs/_templates/autosummary) ----------------------
 autosummary_generate = True
+# autosummary writes a page per object but never removes one: start afresh, so that an object
+# moved or renamed leaves no page behind (sphinx-gallery's back-references stay)
+for page in (Path(__file__).resolve().parent / "api" / "generated").glob("*.rst"):
+    page.unlink()
 autosummary_imported_members = False  # a re-export is documented where it is defined
 autosummary_ignore_module_all = False
 autosummary_context = {name: getattr(api_pages, name)
