@@ -23,9 +23,9 @@ import numpy as np
 import pandas as pd
 
 import teleopkit.rl  # noqa: F401  (registers the environment)
+from teleopkit.model.params import paper_setup
 from teleopkit.rl.env import FlexTeleopVectorEnv
 from teleopkit.rl.registration import ENV_ID
-from teleopkit.model.params import paper_setup
 from teleopkit.sim import Simulator, paper_scenarios
 from teleopkit.sim.timing import CONTROL_PERIOD
 
