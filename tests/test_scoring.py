@@ -77,6 +77,11 @@ def test_score_reads_a_strided_view_of_the_delayed_signals():
     np.testing.assert_array_equal(got, observation(state, np.ascontiguousarray(delayed[:, 0])))
 
 
+def test_errors_of_different_joint_counts_are_refused():
+    with pytest.raises(ValueError, match="same number of joints"):
+        WEIGHTS.reward(np.zeros((3, 2)), np.zeros((3, 1)), np.zeros((3, 4)))
+
+
 @pytest.mark.parametrize(("state", "delayed", "action"), [
     (np.zeros((2, 24)), np.zeros((3, 2)), np.zeros((2, 4))),  # batches differ
     (np.zeros((2, 23)), np.zeros((2, 2)), np.zeros((2, 4))),  # not 12 n entries

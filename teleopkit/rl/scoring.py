@@ -107,10 +107,10 @@ def _blocks(n_joints: int) -> np.ndarray:
     return np.array([layout.slice(name).start for name in names], dtype=np.int64)
 
 
-def _rows(values: np.ndarray) -> np.ndarray:
-    """Float rows of the last axis (a view when possible)."""
+def _rows(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``values`` broadcast to the leading ``shape``, as float rows of their last axis."""
     values = np.asarray(values, dtype=np.float64)
-    return values.reshape(-1, values.shape[-1]) if values.ndim else values.reshape(1, 1)
+    return np.broadcast_to(values, (*shape, values.shape[-1])).reshape(-1, values.shape[-1])
 
 
 @dataclass(frozen=True)
@@ -164,14 +164,13 @@ class RewardWeights:
         ndarray, shape (...)
             ``-(alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2)``.
         """
-        shape = np.broadcast_shapes(np.shape(e_track)[:-1], np.shape(e_damp)[:-1],
-                                    np.shape(action)[:-1])
-        e_track, e_damp = (_rows(np.broadcast_to(x, (*shape, np.shape(x)[-1])))
-                           for x in (e_track, e_damp))
-        action = _rows(np.broadcast_to(action, (*shape, np.shape(action)[-1])))
-        out = np.empty(e_track.shape[0])
-        _reward(e_track, 0, e_damp, 0, e_track.shape[1], action, self.alpha, self.beta,
-                self.gamma, out)
+        shape = np.broadcast_shapes(*(np.shape(x)[:-1] for x in (e_track, e_damp, action)))
+        track, damp, gains = (_rows(x, shape) for x in (e_track, e_damp, action))
+        if track.shape[1] != damp.shape[1]:
+            raise ValueError(f"tracking and damping errors need the same number of joints, "
+                             f"got {track.shape[1]} and {damp.shape[1]}")
+        out = np.empty(track.shape[0])
+        _reward(track, 0, damp, 0, track.shape[1], gains, self.alpha, self.beta, self.gamma, out)
         return out.reshape(shape)
 
 
