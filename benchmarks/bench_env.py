@@ -54,7 +54,7 @@ def stepper(env: gymnasium.Env | FlexTeleopVectorEnv, action: np.ndarray) -> Cal
         *_, terminated, truncated, _ = env.step(action)
         if isinstance(terminated, np.ndarray):  # a vector env: one flag per scenario
             terminated, truncated = terminated.any(), truncated.any()
-        if terminated or truncated:  # a single env's flags are bools (np.any costs 1.5 µs)
+        if terminated or truncated:  # a single env's flags are bools (np.any costs 2 µs)
             env.reset()
 
     return step
