@@ -162,3 +162,18 @@ def test_the_remembered_paper_shape_is_never_stale():
     moved = paper_shape(t)
     np.testing.assert_array_equal(np.delete(moved, 3), np.delete(again, 3))
     assert moved[3] == paper_shape(t[3:4])[0] != again[3]
+
+
+@pytest.mark.parametrize("profile", [FourierDelay(np.array([0.5, 0.75, 1.0])),
+                                     FourierDelay(0.8), ConstantDelay(np.array([0.0, 0.3])),
+                                     ConstantDelay(0.25)])
+def test_factors_multiply_to_the_samples_bit_for_bit(profile):
+    t = np.linspace(0.0, 40.0, 4001)
+    shape, scale = profile.factors(t)
+    assert shape.shape == t.shape and scale.ndim == 1
+    np.testing.assert_array_equal(np.multiply.outer(shape, scale), profile.sample(t))
+
+
+def test_factors_are_checked_against_the_bound():
+    with pytest.raises(ValueError, match="above its declared bound"):
+        FourierDelay(1.0, bound=0.95).factors(np.linspace(0.0, 40.0, 401))

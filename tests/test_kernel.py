@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -109,11 +109,56 @@ def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch):
 
 def test_reads_are_reused_only_when_every_delay_exceeds_the_step():
     delays = np.full((17, 2, 3), 0.002)
-    assert kernel._delays_exceed(delays, 0.00125)
+    ones = np.ones((2, 3))
+    assert kernel._delays_exceed(delays, ones, 0.00125)
     for short in (0.00125, 0.0, np.nan):
         delays[5, 1, 2] = short
-        assert not kernel._delays_exceed(delays, 0.00125)
-        assert kernel._delays_exceed(delays[:, :, :2], 0.00125)
+        assert not kernel._delays_exceed(delays, ones, 0.00125)
+        assert kernel._delays_exceed(delays[:, :, :2], ones[:, :2], 0.00125)
+
+
+def test_reuse_of_reads_with_one_shape_of_time_and_scales():
+    # the delays are shape[s, c] * scale[c, b]: the smallest product decides
+    shape = np.full((17, 2, 1), 0.5)
+    scale = np.full((2, 40), 0.004)
+    assert kernel._delays_exceed(shape, scale, 0.00125)  # 0.002 s everywhere
+    scale[1, 39] = 0.0025
+    assert not kernel._delays_exceed(shape, scale, 0.00125)  # 0.00125 s: not longer
+    scale[1, 39] = 0.004
+    shape[16, 0, 0] = 0.3125
+    assert not kernel._delays_exceed(shape, scale, 0.00125)
+    for bad in (np.nan, -1.0):
+        shape[16, 0, 0], scale[0, 3] = 0.5, bad
+        assert not kernel._delays_exceed(shape, scale, 0.00125)
+
+
+@dataclass(frozen=True)
+class _Unfactored:
+    """A profile's samples without its factors: the simulator keeps a column per scenario."""
+
+    profile: FourierDelay
+
+    @property
+    def bound(self) -> float:
+        return self.profile.bound
+
+    @property
+    def floor(self) -> float:
+        return self.profile.floor
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        return self.profile.sample(t)
+
+
+@pytest.mark.parametrize("batch", [1, LANES + 3])
+def test_factored_delays_give_the_same_bits_as_a_column_per_scenario(rng, batch):
+    scenario = paper_scenarios(rng, batch=batch)
+    columns = replace(scenario, forward=_Unfactored(scenario.forward),
+                      backward=_Unfactored(scenario.backward))
+    gains = rng.uniform(1.0, 50.0, size=(40, batch, 4))
+    factored, full = Simulator(scenario).advance(gains), Simulator(columns).advance(gains)
+    for name in ("state", "delayed", "delays"):
+        np.testing.assert_array_equal(getattr(factored, name), getattr(full, name))
 
 
 def test_a_scenario_gives_the_same_bits_alone_and_in_any_lane_of_a_batch():

@@ -4,7 +4,10 @@ A profile is a frozen dataclass with a declared upper bound ``bound`` (seconds) 
 ``sample(t)`` returning the delay at the times ``t`` for each scenario of a batch: shape ``(S, B)``,
 where ``B`` is the profile's own batch size (1 when it is the same for every scenario, and then it
 broadcasts). ``sample`` checks that every value lies in ``[0, bound]`` and is finite, so a profile
-can never exceed the bound that the certificate and the channel buffers were sized for.
+can never exceed the bound that the certificate and the channel buffers were sized for. A
+profile that is one shape of time times a scale per scenario (:class:`FourierDelay`,
+:class:`ConstantDelay`) also offers ``factors(t)``, the two factors of ``sample(t)``: a large
+batch then samples ``S`` values instead of ``S B``.
 
 Profiles: :class:`FourierDelay` (the paper's Fig. 3), :class:`ConstantDelay`,
 :class:`SinusoidalDelay`, :class:`SwitchingDelay` (bounded random, including fast adversarial
@@ -215,13 +218,38 @@ class FourierDelay:
         ValueError
             If a delay is negative, non-finite or above ``bound``.
         """
+        return np.multiply.outer(*self.factors(t))
+
+    def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The delays at the times ``t`` as one shape of time and a scale per scenario.
+
+        ``np.multiply.outer(shape, scale)`` is :meth:`sample` bit for bit; a simulator of many
+        scenarios multiplies the factors as it reads them instead of storing ``S B`` delays.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        shape : ndarray, shape (S,)
+            ``y(t) / y_max``.
+        scale : ndarray, shape (B,)
+            The scales in seconds.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
         shape = paper_shape(_times(t)) / PAPER_DELAY_MAX
         scale = np.asarray(self.scale)
         # The shape is positive and the scales non-negative, so the extremes of the products are
         # those of the extreme shape values: checking two rows checks every value.
         extremes = np.multiply.outer([shape.min(), shape.max()], scale)
         check_delays(type(self).__name__, extremes, self.bound)
-        return np.multiply.outer(shape, scale)
+        return shape, scale
 
 
 @dataclass(frozen=True)
@@ -269,8 +297,30 @@ class ConstantDelay:
         ValueError
             If a delay is negative, non-finite or above ``bound``.
         """
-        values = np.broadcast_to(np.asarray(self.value), (_times(t).size, np.size(self.value)))
-        return check_delays(type(self).__name__, np.array(values), self.bound)
+        return np.multiply.outer(*self.factors(t))
+
+    def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The delays at the times ``t`` as ones times the values (see :meth:`sample`).
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        shape : ndarray, shape (S,)
+            Ones.
+        scale : ndarray, shape (B,)
+            The delays in seconds.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        value = check_delays(type(self).__name__, np.asarray(self.value), self.bound)
+        return np.ones(_times(t).size), value
 
 
 @dataclass(frozen=True)

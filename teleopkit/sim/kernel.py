@@ -11,10 +11,11 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
 - The batch is cut into blocks of :data:`LANES` scenarios, integrated in parallel (``prange``).
   Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and each RK4
   stage runs three loops over lanes without calls or branches (the sine and cosine are an
-  inlined polynomial), which LLVM vectorises: the delayed history reads (gathers), the motion
-  (controllers, springs and the two arms' accelerations) and the integrands of the cost and
-  energy terms. One loop writing all the slopes stayed scalar (motion and integrands of one
-  derivative, timed alone at batch 4096 on one thread: 31 ns in one loop, 10 ns in two).
+  inlined polynomial, :func:`~teleopkit.sim.trig.sincos`), which LLVM vectorises: the delayed
+  history reads (gathers), the motion (controllers, springs and the two arms' accelerations)
+  and the integrands of the cost and energy terms. One loop writing all the slopes stayed
+  scalar (motion and integrands of one derivative, timed alone at batch 4096 on one thread:
+  31 ns in one loop, 10 ns in two).
 - Those loops sit in the body of the parallel loop itself: the block body is inlined there by
   numba (``inline="always"``), and the scratch arrays are allocated before the loop, so numba
   passes them to the body as ``noalias`` arguments, which the vectoriser needs. Inlined later
@@ -26,6 +27,10 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
   read depends on the stage time only, and a two-link block reads the history at two of the four
   RK4 stages: the second midpoint stage and the next step's first stage reuse the reads of the
   stages at the same times (bit for bit; batch 4096: 1.6 to 1.8 M env-steps/s).
+- Delays come as one shape of time per channel times a scale per scenario when both profiles
+  have ``factors`` (the paper's Fourier profile, constant delays; see :func:`advance`): the
+  kernel multiplies as it reads instead of reading ``S B`` delays sampled by numpy (26 MB per
+  25-period call at batch 4096), the same products bit for bit.
 - Model constants are one plain array (:func:`kernel_model`); a tuple of arrays would be reference
   counted at every read.
 - Two-link arms use a closed-form inertia solve; other arms a generic scalar Cholesky path.
@@ -48,6 +53,7 @@ from numba import njit, prange
 from teleopkit.model.dynamics import inertia_coefficients
 from teleopkit.model.params import TeleoperatorParams, Wall
 from teleopkit.sim.state import FIELDS
+from teleopkit.sim.trig import sincos
 
 __all__ = ["BLOCKS", "LANES", "advance", "kernel_model"]
 
@@ -56,16 +62,6 @@ LANES = 32
 
 BLOCKS = len(FIELDS)
 """Blocks of ``n`` values in a state (:class:`~teleopkit.sim.state.StateLayout`)."""
-
-
-# sin and cos on [-pi/4, pi/4] (fdlibm's minimax coefficients) after a three-part Cody-Waite
-# reduction by pi/2: at most 2 ulp from libm for |x| < 1e5, and vectorisable.
-_TWO_OVER_PI = 0.6366197723675814
-_PIO2 = (1.57079632673412561417e+00, 6.07710050630396597660e-11, 2.02226624879595063154e-21)
-_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
-        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
-_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
-        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
 
 
 # Rows of the model array (see kernel_model).
@@ -101,22 +97,6 @@ def kernel_model(params: TeleoperatorParams) -> np.ndarray:
     return np.vstack([np.array(joint), np.repeat(np.array(scalars)[:, None], n, axis=1),
                       inertia_coefficients(params.local_arm),
                       inertia_coefficients(params.remote_arm)])
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _sincos(x: float) -> tuple[float, float]:
-    """``(sin x, cos x)`` without a library call."""
-    q = math.floor(x * _TWO_OVER_PI + 0.5)
-    r = ((x - q * _PIO2[0]) - q * _PIO2[1]) - q * _PIO2[2]
-    z = r * r
-    s = r + r * z * (_SIN[0] + z * (_SIN[1] + z * (_SIN[2] + z * (_SIN[3] + z * (
-        _SIN[4] + z * _SIN[5])))))
-    c = 1.0 - 0.5 * z + z * z * (_COS[0] + z * (_COS[1] + z * (_COS[2] + z * (_COS[3] + z * (
-        _COS[4] + z * _COS[5])))))
-    odd = (q & 1) != 0
-    sin = c if odd else s
-    cos = s if odd else c
-    return (-sin if q & 2 else sin), (-cos if (q + 1) & 2 else cos)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -186,7 +166,7 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
     """Closed form of :func:`_arm_acceleration` for two links: ``(q1'', q2'')``."""
     first = _INERTIA + 2 * arm
     a12, a22 = m[first, 1], m[first + 1, 1]
-    s, c = _sincos(q2)
+    s, c = sincos(q2)
     m12 = a22 + a12 * c
     m11 = m[first, 0] + a12 * c + m12
     h2 = a12 * s * dq1 * dq1
@@ -198,7 +178,17 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _two_link_delayed(hist, initial, delays, clock, frac, dt, st, delayed, b, lo, w):
+def _delay(delays, scale, row, c, lane):
+    """Channel ``c``'s delay of scenario ``lane`` at input row ``row``, in seconds.
+
+    ``delays`` holds one column per scenario, or one shared column that ``scale`` multiplies
+    (see :func:`advance`).
+    """
+    return delays[row, c, lane if delays.shape[2] > 1 else 0] * scale[c, lane]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st, delayed, b, lo, w):
     """Write lane ``w``'s delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` to ``delayed[b, :, w]``.
 
     The stage state is ``st[b, :, w]``; ``clock`` is ``(k, newest, row, p)``: newest stored grid
@@ -208,8 +198,8 @@ def _two_link_delayed(hist, initial, delays, clock, frac, dt, st, delayed, b, lo
     k, newest, row, _ = clock
     lane = lo + w
     length = hist.shape[2]
-    to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
-    to_local = _locate(k, newest, frac, delays[row, 1, lane], dt, length)
+    to_remote = _locate(k, newest, frac, _delay(delays, scale, row, 0, lane), dt, length)
+    to_local = _locate(k, newest, frac, _delay(delays, scale, row, 1, lane), dt, length)
     delayed[b, 0, w] = _interpolate(hist, lane, 0, 0, to_remote, st[b, 0, w], st[b, 2, w], initial)
     delayed[b, 1, w] = _interpolate(hist, lane, 0, 1, to_remote, st[b, 1, w], st[b, 3, w], initial)
     delayed[b, 2, w] = _interpolate(hist, lane, 1, 0, to_local, st[b, 8, w], st[b, 10, w], initial)
@@ -279,7 +269,7 @@ def _arm_acceleration(m, arm, x, b, w, first, work, slopes, r):
         work[b, i, i] = m[coef + i, i]
     for i in range(n):
         for j in range(i + 1, n):
-            s, c = _sincos(work[b, phi, i] - work[b, phi, j])
+            s, c = sincos(work[b, phi, i] - work[b, phi, j])
             a = m[coef + i, j]
             work[b, i, j] = a * c
             work[b, j, i] = a * c
@@ -325,15 +315,15 @@ def _cholesky_solve(work, b, row):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock, frac, dt, st, slopes, b, r,
-                  lo, w, work):
+def _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock, frac, dt, st, slopes,
+                  b, r, lo, w, work):
     """Do :func:`_two_link_lane` for any number of joints; ``work[b]`` ``(n + 5, n)`` is scratch."""
     k, newest, row, p = clock
     lane = lo + w
     length = hist.shape[2]
     n = initial.shape[2]
-    to_remote = _locate(k, newest, frac, delays[row, 0, lane], dt, length)
-    to_local = _locate(k, newest, frac, delays[row, 1, lane], dt, length)
+    to_remote = _locate(k, newest, frac, _delay(delays, scale, row, 0, lane), dt, length)
+    to_local = _locate(k, newest, frac, _delay(delays, scale, row, 1, lane), dt, length)
     for i in range(n):
         ql = _interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
         th = _interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
@@ -413,7 +403,7 @@ def _record(hist, slot, xs, b, lo, width):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
+def _emit(hist, initial, delays, scale, k, row, p, dt, xs, b, lo, width, out_state,
           out_delayed):
     """Write the block's state and delayed signals at the end of period ``p``.
 
@@ -424,7 +414,7 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
     for w in range(width):
         lane = lo + w
         for c in range(2):
-            where = _locate(k, k % length, 0.0, delays[row, c, lane], dt, length)
+            where = _locate(k, k % length, 0.0, _delay(delays, scale, row, c, lane), dt, length)
             for i in range(n):
                 out_delayed[p, lane, c, i] = _interpolate(
                     hist, lane, c, i, where, xs[b, 4 * n * c + i, w],
@@ -434,17 +424,38 @@ def _emit(hist, initial, delays, k, row, p, dt, xs, b, lo, width, out_state,
 
 
 @njit(cache=True, error_model="numpy")
-def _delays_exceed(delays, dt):
-    """Whether every entry of ``delays`` exceeds ``dt`` (none is NaN)."""
-    for delay in delays.flat:
-        if not delay > dt:
+def _delays_exceed(delays, scale, dt):
+    """Whether every delay of a call (:func:`_delay`) exceeds ``dt`` (none is NaN).
+
+    A shared column is checked by its smallest value times the smallest scale: products of
+    non-negative numbers round monotonically, so no product is smaller. A negative or NaN factor
+    answers False, which is always safe (the reads are then made at every stage).
+    """
+    if delays.shape[2] > 1:
+        for c in range(2):
+            for row in range(delays.shape[0]):
+                for lane in range(delays.shape[2]):
+                    if not delays[row, c, lane] * scale[c, lane] > dt:
+                        return False
+        return True
+    for c in range(2):
+        low_delay, low_scale = math.inf, math.inf
+        for row in range(delays.shape[0]):
+            if not delays[row, c, 0] >= 0.0:
+                return False
+            low_delay = min(low_delay, delays[row, c, 0])
+        for lane in range(scale.shape[1]):
+            if not scale[c, lane] >= 0.0:
+                return False
+            low_scale = min(low_scale, scale[c, lane])
+        if not low_delay * low_scale > dt:
             return False
     return True
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
-                   out_delayed, xs, st, slopes, work, delayed, b, lo, width, reuse):
+def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
+                   out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width, reuse):
     """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period.
 
     With ``reuse`` (every delay of the call is longer than ``dt``: :func:`_delays_exceed`) no
@@ -467,7 +478,7 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, g
                 if dim == 2 * BLOCKS:
                     if not (reuse and (r == 2 or (r == 0 and p + s > 0))):
                         for w in range(width):
-                            _two_link_delayed(hist, initial, delays, clock, frac, dt, st,
+                            _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st,
                                               delayed, b, lo, w)
                     for w in range(width):
                         _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r,
@@ -476,12 +487,12 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, g
                         _two_link_integrands(st, delayed, slopes, b, r, w)
                 else:
                     for w in range(width):
-                        _generic_lane(m, hist, initial, delays, qh, qh_gain, gains, clock,
+                        _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock,
                                       frac, dt, st, slopes, b, r, lo, w, work)
             _rk4_update(xs, slopes, b, dt, width)
             _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
-        _emit(hist, initial, delays, step0 + (p + 1) * substeps, 2 * (p + 1) * substeps, p,
-              dt, xs, b, lo, width, out_state, out_delayed)
+        _emit(hist, initial, delays, scale, step0 + (p + 1) * substeps,
+              2 * (p + 1) * substeps, p, dt, xs, b, lo, width, out_state, out_delayed)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -494,40 +505,40 @@ def _scratch(blocks, dim):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _advance(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
-             out_delayed, reuse):
+def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
+             out_state, out_delayed, reuse):
     batch, dim = x.shape
     blocks = (batch + LANES - 1) // LANES
     # The scratch is allocated outside the parallel loop so that it reaches it as noalias
     # arguments.
     xs, st, slopes, work, delayed = _scratch(blocks, dim)
     # Before the parallel loop: a call on an array inside its body would cost the noalias flag.
-    reuse = reuse and _delays_exceed(delays, dt)
+    reuse = reuse and _delays_exceed(delays, scale, dt)
     for b in prange(blocks):
         lo = b * LANES
         width = min(LANES, batch - lo)
         _transfer(x, xs, b, lo, width, True)
-        _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+        _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
                        out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width,
                        reuse)
         _transfer(x, xs, b, lo, width, False)
 
 
 @njit(cache=True, error_model="numpy")
-def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
                     out_state, out_delayed, reuse):
     """:func:`_advance` for one scenario, without the parallel loop's launch."""
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
-    reuse = reuse and _delays_exceed(delays, dt)
+    reuse = reuse and _delays_exceed(delays, scale, dt)
     _transfer(x, xs, 0, 0, 1, True)
-    _advance_block(m, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains,
+    _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
                    out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
     _transfer(x, xs, 0, 0, 1, False)
 
 
 def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt: float,
-            substeps: int, delays: np.ndarray, qh: np.ndarray, qh_gain: np.ndarray,
-            gains: np.ndarray, model: np.ndarray, out_state: np.ndarray,
+            substeps: int, delays: np.ndarray, scale: np.ndarray, qh: np.ndarray,
+            qh_gain: np.ndarray, gains: np.ndarray, model: np.ndarray, out_state: np.ndarray,
             out_delayed: np.ndarray) -> None:
     """Integrate ``gains.shape[0]`` control periods of ``substeps`` RK4 steps, in place.
 
@@ -547,8 +558,12 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Integration step.
     substeps : int
         Integration steps per control period.
-    delays : ndarray, shape (2 P substeps + 1, 2, B)
-        Forward and backward delays in seconds at every half step from the current time.
+    delays, scale : ndarray, shapes (2 P substeps + 1, 2, K) and (2, B)
+        Forward and backward delays at every half step from the current time: channel ``c`` of
+        scenario ``b`` at row ``s`` is ``delays[s, c, b] * scale[c, b]`` seconds with ``K = B``
+        (one column per scenario; ``scale`` is then ones), or ``delays[s, c, 0] * scale[c, b]``
+        with ``K = 1`` (one shape of time times a scale per scenario, a profile's
+        ``factors``).
     qh, qh_gain : ndarray, shapes (2 P substeps + 1, n) and (B, n)
         The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
         with unit gains, times each scenario's gains ``G``).
@@ -562,8 +577,8 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
     """
     # the last argument allows reusing delayed reads (the tests turn it off to compare)
-    args = (model, x, hist, initial, step0, dt, substeps, delays, qh, qh_gain, gains, out_state,
-            out_delayed, True)
+    args = (model, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
+            out_state, out_delayed, True)
     if x.shape[0] == 1:  # one scenario: the parallel launch and thread cap cost a fifth
         _advance_single(*args)
         return

@@ -109,6 +109,8 @@ class Simulator:
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
+        # the kernel reads one shape of time per channel when both profiles have factors
+        self._factored = all(hasattr(p, "factors") for p in (scenario.forward, scenario.backward))
         self.dt = dt
         self.control_period = control_period
         self.backend = backend
@@ -174,20 +176,29 @@ class Simulator:
         reference : ndarray, shape (S, B, n)
             Operator reference ``q_h(t)`` in radians, with each scenario's reference gains.
         """
-        delays, unit = self._sample(times)
-        return delays.transpose(0, 2, 1), self.scenario.reference_gains[None] * unit[:, None]
+        delays, scale, unit = self._sample(times)
+        return ((delays * scale).transpose(0, 2, 1),
+                self.scenario.reference_gains[None] * unit[:, None])
 
-    def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Delays ``(S, 2, B)`` and the operator reference with unit gains ``(S, n)`` at ``times``.
+    def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Delays in the kernel's factors at ``times`` and the operator reference with unit gains.
 
+        Shapes ``(S, 2, K)``, ``(2, B)`` and ``(S, n)``: when both channels' profiles have
+        ``factors``, one shape of time per channel (``K = 1``) and each scenario's scale,
+        else one column per scenario (``K = B``) and ones (:func:`~teleopkit.sim.kernel.advance`).
         The reference of scenario ``b`` is ``G_b`` times the unit one (see
         :class:`~teleopkit.model.params.Operator`), so it is evaluated once, not once per scenario.
         """
-        delays = np.empty((times.size, 2, self.batch))
-        delays[:, 0] = self.scenario.forward.sample(times)
-        delays[:, 1] = self.scenario.backward.sample(times)
+        channels = (self.scenario.forward, self.scenario.backward)
+        delays = np.empty((times.size, 2, 1 if self._factored else self.batch))
+        scale = np.ones((2, self.batch))
+        for c, profile in enumerate(channels):
+            if self._factored:
+                delays[:, c, 0], scale[c] = profile.factors(times)
+            else:
+                delays[:, c] = profile.sample(times)
         unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
-        return delays, unit[:, 0]
+        return delays, scale, unit[:, 0]
 
     def advance(self, gains: np.ndarray) -> StepResult:
         """Simulate ``P`` control periods with the given remote gains.
@@ -213,10 +224,12 @@ class Simulator:
         self._integrate(gains, result)
         return result
 
-    def _stage_inputs(self, periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Times, delays and unit reference at the next ``periods`` periods' stage times.
+    def _stage_inputs(self, periods: int,
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Times, delays and their scales, and unit reference at the coming stage times.
 
-        Shapes ``(S,)``, ``(S, 2, B)`` and ``(S, n)``: every half step, ``S = 2 P substeps + 1``.
+        Shapes ``(S,)``, ``(S, 2, K)``, ``(2, B)`` and ``(S, n)`` (see :meth:`_sample`): every
+        half step of the next ``periods`` periods, ``S = 2 P substeps + 1``.
 
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
@@ -227,7 +240,7 @@ class Simulator:
         rows = 2 * periods * self.substeps + 1
         cached = self._inputs
         if cached is None or not cached.covers(self.scenario, self._step, rows):
-            ahead = max(rows, LOOKAHEAD_VALUES // self.batch)
+            ahead = max(rows, LOOKAHEAD_VALUES // (1 if self._factored else self.batch))
             try:
                 cached = self._sample_from_here(ahead)
             except ValueError:
@@ -235,7 +248,7 @@ class Simulator:
             self._inputs = cached
         first = 2 * (self._step - cached.step)
         window = slice(first, first + rows)
-        return cached.times[window], cached.delays[window], cached.unit[window]
+        return cached.times[window], cached.delays[window], cached.scale, cached.unit[window]
 
     def _sample_from_here(self, rows: int) -> _Inputs:
         """The inputs at ``rows`` stage times (half steps) from the current step."""
@@ -251,17 +264,18 @@ class Simulator:
     def _integrate(self, gains: np.ndarray, out: StepResult) -> None:
         """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
-        times, delays, unit = self._stage_inputs(periods)
+        times, delays, scale, unit = self._stage_inputs(periods)
         ends = slice(2 * self.substeps, None, 2 * self.substeps)
         out.t[:] = times[ends]
-        out.delays[:] = delays[ends].transpose(0, 2, 1)
+        out.delays[:] = (delays[ends] * scale).transpose(0, 2, 1)
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
-                delays.transpose(0, 2, 1), reference_gains[None] * unit[:, None], gains)
+                (delays * scale).transpose(0, 2, 1), reference_gains[None] * unit[:, None],
+                gains)
         else:
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
-                           self.substeps, delays, unit, reference_gains,
+                           self.substeps, delays, scale, unit, reference_gains,
                            np.ascontiguousarray(gains), self._model, out.state, out.delayed)
         self._step += periods * self.substeps
 
@@ -369,6 +383,7 @@ class _Inputs:
     step: int
     times: np.ndarray
     delays: np.ndarray
+    scale: np.ndarray
     unit: np.ndarray
 
     def covers(self, scenario: Scenario, step: int, rows: int) -> bool:
