@@ -267,7 +267,7 @@ class Simulator:
         times, delays, scale, unit = self._stage_inputs(periods)
         ends = slice(2 * self.substeps, None, 2 * self.substeps)
         out.t[:] = times[ends]
-        out.delays[:] = (delays[ends] * scale).transpose(0, 2, 1)
+        np.multiply(delays[ends], scale, out=out.delays.transpose(0, 2, 1))
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
