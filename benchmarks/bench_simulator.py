@@ -173,12 +173,14 @@ class Jitcdde:
 def memory_per_scenario(batch: int, periods: int, dt: float) -> int:
     """Bytes per scenario of the compiled backend.
 
-    State, channel history, and the sampled inputs and outputs of one ``advance`` call of
-    ``periods`` periods.
+    State, channel history, and the sampled inputs (as far ahead as they are sampled) and
+    outputs of one ``advance`` call of ``periods`` periods.
     """
     sim = Simulator(paper_scenarios(0, batch=batch), dt=dt)
-    samples = 2 * periods * sim.substeps + 1
-    inputs = samples * 2 * 8 + periods * 4 * 8  # delays of both channels, gains
+    sim._stage_inputs(periods)  # samples the inputs (ahead): times, delays, scales, reference
+    sampled = sim._inputs
+    arrays = (sampled.times, sampled.delays, sampled.scale, sampled.unit)
+    inputs = sum(a.nbytes for a in arrays) // batch + periods * 4 * 8  # and the gains
     outputs = periods * (sim.layout.size + 4 + 2) * 8  # state, delayed signals, delays
     return (sim._x.nbytes + sim._hist.nbytes + sim._initial.nbytes) // batch + inputs + outputs
 

@@ -32,7 +32,8 @@ __all__ = ["CALL_VALUES", "LOOKAHEAD_VALUES", "Simulator", "check_gains", "simul
 
 LOOKAHEAD_VALUES = 16384
 """Delay values per channel :class:`Simulator` samples ahead of a short advance: 10 s of one
-scenario at the default step (some 0.7 MB of inputs), a period or two of a large batch."""
+scenario at the default step (some 0.7 MB of inputs), a period or two of a large batch whose
+delay profiles have no ``factors`` (with factors the batch shares one column: 10 s)."""
 
 CALL_VALUES = 1 << 20
 """Delay values per channel that one kernel call of :meth:`Simulator.run` samples by default
