@@ -17,7 +17,7 @@ switching between the extremes) and :class:`TraceDelay` (a recorded trace, e.g. 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol
@@ -166,8 +166,34 @@ def _times(t: np.ndarray) -> np.ndarray:
     return np.atleast_1d(np.asarray(t, dtype=float))
 
 
+class _Factored:
+    """A delay that is one shape of time times a scale per scenario: sample from factors."""
+
+    factors: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays at the times ``t``: the outer product of :meth:`factors`.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds (a scalar is one time).
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per scenario of the profile.
+
+        Raises
+        ------
+        ValueError
+            If a delay is negative, non-finite or above ``bound``.
+        """
+        return np.multiply.outer(*self.factors(t))
+
+
 @dataclass(frozen=True)
-class FourierDelay:
+class FourierDelay(_Factored):
     """The paper's delay ``T(t) = scale * y(t) / y_max``, ``y`` the Fourier series of Fig. 3.
 
     ``y`` is the 16-harmonic fit of the paper's Fig. 3 (range about 0.903-1.000 s); the fit
@@ -199,26 +225,6 @@ class FourierDelay:
     def floor(self) -> float:
         """Declared lower bound: the smallest scale times the fit's rigorous relative minimum."""
         return float(np.min(self.scale)) * PAPER_DELAY_MIN / PAPER_DELAY_MAX
-
-    def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``.
-
-        Parameters
-        ----------
-        t : ndarray, shape (S,)
-            Times in seconds (a scalar is one time).
-
-        Returns
-        -------
-        ndarray, shape (S, B)
-            Delay in seconds at each time, one column per entry of ``scale``.
-
-        Raises
-        ------
-        ValueError
-            If a delay is negative, non-finite or above ``bound``.
-        """
-        return np.multiply.outer(*self.factors(t))
 
     def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The delays at the times ``t`` as one shape of time and a scale per scenario.
@@ -253,7 +259,7 @@ class FourierDelay:
 
 
 @dataclass(frozen=True)
-class ConstantDelay:
+class ConstantDelay(_Factored):
     """A constant delay (per scenario).
 
     Parameters
@@ -278,26 +284,6 @@ class ConstantDelay:
     def floor(self) -> float:
         """Declared lower bound: the smallest value."""
         return float(np.min(self.value))
-
-    def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``.
-
-        Parameters
-        ----------
-        t : ndarray, shape (S,)
-            Times in seconds (a scalar is one time).
-
-        Returns
-        -------
-        ndarray, shape (S, B)
-            Delay in seconds at each time, one column per entry of ``value``.
-
-        Raises
-        ------
-        ValueError
-            If a delay is negative, non-finite or above ``bound``.
-        """
-        return np.multiply.outer(*self.factors(t))
 
     def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The delays at the times ``t`` as ones times the values (see :meth:`sample`).
