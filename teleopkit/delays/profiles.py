@@ -17,10 +17,10 @@ switching between the extremes) and :class:`TraceDelay` (a recorded trace, e.g. 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -166,34 +166,29 @@ def _times(t: np.ndarray) -> np.ndarray:
     return np.atleast_1d(np.asarray(t, dtype=float))
 
 
-class _Factored:
-    """A delay that is one shape of time times a scale per scenario: sample from factors."""
+def _outer_product_of_factors(self: Any, t: np.ndarray) -> np.ndarray:
+    """Return the delays at the times ``t``: the outer product of :meth:`factors`.
 
-    factors: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    Parameters
+    ----------
+    t : ndarray, shape (S,)
+        Times in seconds (a scalar is one time).
 
-    def sample(self, t: np.ndarray) -> np.ndarray:
-        """Return the delays at the times ``t``: the outer product of :meth:`factors`.
+    Returns
+    -------
+    ndarray, shape (S, B)
+        Delay in seconds at each time, one column per scenario of the profile.
 
-        Parameters
-        ----------
-        t : ndarray, shape (S,)
-            Times in seconds (a scalar is one time).
-
-        Returns
-        -------
-        ndarray, shape (S, B)
-            Delay in seconds at each time, one column per scenario of the profile.
-
-        Raises
-        ------
-        ValueError
-            If a delay is negative, non-finite or above ``bound``.
-        """
-        return np.multiply.outer(*self.factors(t))
+    Raises
+    ------
+    ValueError
+        If a delay is negative, non-finite or above ``bound``.
+    """
+    return np.multiply.outer(*self.factors(t))
 
 
 @dataclass(frozen=True)
-class FourierDelay(_Factored):
+class FourierDelay:
     """The paper's delay ``T(t) = scale * y(t) / y_max``, ``y`` the Fourier series of Fig. 3.
 
     ``y`` is the 16-harmonic fit of the paper's Fig. 3 (range about 0.903-1.000 s); the fit
@@ -225,6 +220,8 @@ class FourierDelay(_Factored):
     def floor(self) -> float:
         """Declared lower bound: the smallest scale times the fit's rigorous relative minimum."""
         return float(np.min(self.scale)) * PAPER_DELAY_MIN / PAPER_DELAY_MAX
+
+    sample = _outer_product_of_factors
 
     def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The delays at the times ``t`` as one shape of time and a scale per scenario.
@@ -259,7 +256,7 @@ class FourierDelay(_Factored):
 
 
 @dataclass(frozen=True)
-class ConstantDelay(_Factored):
+class ConstantDelay:
     """A constant delay (per scenario).
 
     Parameters
@@ -284,6 +281,8 @@ class ConstantDelay(_Factored):
     def floor(self) -> float:
         """Declared lower bound: the smallest value."""
         return float(np.min(self.value))
+
+    sample = _outer_product_of_factors
 
     def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The delays at the times ``t`` as ones times the values (see :meth:`sample`).
