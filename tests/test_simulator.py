@@ -7,7 +7,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from teleopkit import ConstantDelay, Simulator, paper_scenarios
+from teleopkit import (
+    ConstantDelay,
+    FourierDelay,
+    Scenario,
+    Simulator,
+    SwitchingDelay,
+    paper_scenarios,
+)
 from teleopkit.delays.profiles import check_delays
 
 GAINS = np.array([12.0, 9.0, 35.0, 28.0])
@@ -101,3 +108,12 @@ def test_gains_that_are_not_finite_and_non_negative_are_refused(bad):
         simulator.advance(gains)
     assert simulator.time == 0.0  # nothing was simulated
     simulator.advance(np.zeros(4))  # zero gains are admissible
+
+
+@pytest.mark.parametrize("profile", [FourierDelay(np.array([0.5, 0.6, 0.7])),
+                                     SwitchingDelay(0.1, 0.5, dwell=0.05, seed=1, batch=3)])
+def test_a_delay_profile_of_another_batch_is_refused(profile):
+    with pytest.raises(ValueError, match="forward delay profile has 3 scenarios, the reference "
+                                         "gains 5"):
+        Scenario(paper_scenarios(0, 1).params, profile, FourierDelay(1.0), np.ones((5, 2)))
+    Scenario(paper_scenarios(0, 1).params, profile, FourierDelay(1.0), np.ones((3, 2)))

@@ -60,9 +60,14 @@ class Scenario:
             raise ValueError("reference gains must be finite")
         object.__setattr__(self, "reference_gains", gains)
         for name in ("forward", "backward"):
-            bound = getattr(self, name).bound
+            profile = getattr(self, name)
+            bound = profile.bound
             if not np.isfinite(bound) or bound < 0:
                 raise ValueError(f"{name} delay bound must be finite and >= 0, got {bound}")
+            columns = np.shape(profile.sample(np.zeros(1)))[-1]
+            if columns not in (1, gains.shape[0]):
+                raise ValueError(f"the {name} delay profile has {columns} scenarios, the "
+                                 f"reference gains {gains.shape[0]}: give it 1 or the same")
 
     @property
     def batch(self) -> int:
