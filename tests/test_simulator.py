@@ -74,14 +74,20 @@ def test_constant_gains_are_recorded_without_a_copy_per_period():
     assert Simulator(scenario).run(0.5, schedule).gains.flags.writeable
 
 
-def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypatch):
+@pytest.mark.parametrize("factored", [True, False])
+def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypatch, factored):
     from teleopkit.sim import simulator
 
     scenario = paper_scenarios(4, batch=3)
+    columns = 1  # the paper's profiles have factors: one column of delays for the batch
+    if not factored:
+        scenario = replace(scenario, forward=SwitchingDelay(0.1, 0.5, dwell=0.05, seed=1,
+                                                            batch=3))
+        columns = scenario.batch
     whole = Simulator(scenario).run(0.25, GAINS, chunk=0.25)
     sim = Simulator(scenario)
     # three periods' worth of delay values per call: 25 periods in calls of 3, 3, ..., 1
-    monkeypatch.setattr(simulator, "CALL_VALUES", 3 * 2 * sim.substeps * scenario.batch)
+    monkeypatch.setattr(simulator, "CALL_VALUES", 3 * 2 * sim.substeps * columns)
     calls = []
     integrate = sim._integrate
     monkeypatch.setattr(sim, "_integrate", lambda g, out: (calls.append(g.shape[0]),
