@@ -177,3 +177,9 @@ def test_factors_multiply_to_the_samples_bit_for_bit(profile):
 def test_factors_are_checked_against_the_bound():
     with pytest.raises(ValueError, match="above its declared bound"):
         FourierDelay(1.0, bound=0.95).factors(np.linspace(0.0, 40.0, 401))
+
+
+def test_factors_are_fresh_arrays():
+    profile = FourierDelay(np.array([0.5, 0.75]))
+    profile.factors(np.zeros(3))[1][:] = 9.0
+    np.testing.assert_array_equal(profile.scale, [0.5, 0.75])

@@ -40,7 +40,13 @@ __all__ = [
 ]
 
 class DelayProfile(Protocol):
-    """What the simulator needs from a delay profile."""
+    """What the simulator needs from a delay profile.
+
+    A profile that is one shape of time times a scale per scenario may also have a method
+    ``factors(t)`` returning ``(shape (S,), scale (B,))`` whose outer product is ``sample(t)``
+    bit for bit (:meth:`FourierDelay.factors`); the simulator then keeps one column of delays
+    for the whole batch.
+    """
 
     @property
     def bound(self) -> float:
@@ -252,7 +258,7 @@ class FourierDelay:
         # those of the extreme shape values: checking two rows checks every value.
         extremes = np.multiply.outer([shape.min(), shape.max()], scale)
         check_delays(type(self).__name__, extremes, self.bound)
-        return shape, scale
+        return shape, scale.copy()
 
 
 @dataclass(frozen=True)
@@ -304,7 +310,7 @@ class ConstantDelay:
         ValueError
             If a delay is negative, non-finite or above ``bound``.
         """
-        value = check_delays(type(self).__name__, np.asarray(self.value), self.bound)
+        value = check_delays(type(self).__name__, np.array(self.value), self.bound)
         return np.ones(_times(t).size), value
 
 
