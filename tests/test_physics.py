@@ -133,7 +133,7 @@ def _run_against_reference(delay: float, dt: float) -> tuple[np.ndarray, np.ndar
                              ACCURACY_REFERENCE[None]), dt=dt, control_period=0.01)
     expected = _reference_run(delay)
     error = np.abs(sim.run(2.0, ACCURACY_GAINS).state[:, 0, :12] - expected)
-    return error[:, [0, 1, 4, 5, 8, 9]], expected[:, 8:10]
+    return error[:, sim.layout.positions], expected[:, sim.layout.slice("theta")]
 
 
 @pytest.mark.parametrize("delay", [0.0, 0.2])

@@ -317,7 +317,11 @@ def _cholesky_solve(work, b, row):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock, frac, dt, st, slopes,
                   b, r, lo, w, work):
-    """Do :func:`_two_link_lane` for any number of joints; ``work[b]`` ``(n + 5, n)`` is scratch."""
+    """The reads, motion and integrands of the two-link loops, for any number of joints.
+
+    One loop body does what :func:`_two_link_delayed`, :func:`_two_link_lane` and
+    :func:`_two_link_integrands` do; ``work[b]`` ``(n + 5, n)`` is scratch.
+    """
     k, newest, row, p = clock
     lane = lo + w
     length = hist.shape[2]

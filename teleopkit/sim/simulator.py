@@ -116,7 +116,6 @@ class Simulator:
         self.n_joints = scenario.params.n_joints
         # the kernel reads one shape of time per channel when both profiles have factors
         self._factored = all(hasattr(p, "factors") for p in (scenario.forward, scenario.backward))
-        self._delay_columns = 1 if self._factored else self.batch
         self.dt = dt
         self.control_period = control_period
         self.backend = backend
@@ -124,6 +123,11 @@ class Simulator:
         self._model = kernel.kernel_model(scenario.params)
         self._inputs: _Inputs | None = None
         self.reset()
+
+    @property
+    def _delay_columns(self) -> int:
+        """Columns of sampled delays per channel: one shared by the batch, or one per scenario."""
+        return 1 if self._factored else self.batch
 
     @property
     def time(self) -> float:
