@@ -30,7 +30,11 @@ gains, 1e-3 9 % below (same seed and data). Rewards are scaled by 0.01 in the cr
 Batches of 256 instead of 512 make a round a quarter shorter (17.6 against 23.4 s) but learn
 less per round: run side by side on 2026-12-04 (one core each), the recipe's validation cost
 was first 10 % below the best static gains' at round 13 (280 s), with 256 it was at best 6.7 %
-below within 14 rounds (230 s).
+below within 14 rounds (230 s). Starting the actor at the best static gains
+(``TD3Config.start``, 14 s to find them) does not shorten it either (2026-12-04, one core each, 10
+rounds): its validation cost is the static gains' at round 1 (9138), jumps to 25 662 in the first
+learning round while the critics are still untrained, and is at best 7.9 % below theirs within 10
+rounds with learning rates of 1e-3 (1.7 % below with 3e-4).
 """
 
 from __future__ import annotations
