@@ -40,7 +40,7 @@ def test_channel_exact_on_cubics_across_switching_delays(signal, derivative):
         t = now + offset * DT
         latest = (signal(t), derivative(t))
         for delay in profile.sample(np.linspace(0, 1, 40))[:, 0]:
-            got = channel.read(offset * DT, np.array([delay]), latest)
+            got = channel.read(offset, np.array([delay]), latest)
             np.testing.assert_allclose(got, signal(t - delay), atol=1e-12)
 
 
@@ -54,7 +54,7 @@ def test_channel_holds_the_initial_value_before_the_first_sample():
 def test_channel_zero_delay_returns_the_current_stage():
     channel = ChannelHistory(np.zeros((2, 1)), DT, bound=0.1)
     latest = (np.array([[0.7], [-0.2]]), np.array([[3.0], [1.0]]))
-    got = channel.read(0.5 * DT, np.zeros(2), latest)
+    got = channel.read(0.5, np.zeros(2), latest)
     np.testing.assert_array_equal(got, latest[0])
 
 

@@ -26,7 +26,13 @@ from teleopkit.model.params import (
     TeleoperatorParams,
 )
 from teleopkit.sim import kernel
+from teleopkit.sim._kernel_reads import delays_exceed
 from teleopkit.sim.kernel import LANES
+from teleopkit.sim.timing import DEFAULT_DT
+
+THREE_LINK_DT = 0.0005
+"""A step inside the method's stability limit for :func:`_three_link`, whose light links and
+strong local damping (up to about 4700 1/s) make it five times stiffer than the paper's arm."""
 
 
 def _three_link() -> TeleoperatorParams:
@@ -41,8 +47,9 @@ def _three_link() -> TeleoperatorParams:
         environment=Wall((0.2, math.inf, 0.1), 500.0, 2.0), torque_limit=8.0)
 
 
-def _compare(scenario: Scenario, gains: np.ndarray, periods: int) -> None:
-    runs = [Simulator(scenario, backend=b).advance(gains) for b in ("compiled", "numpy")]
+def _compare(scenario: Scenario, gains: np.ndarray, periods: int, dt: float = DEFAULT_DT,
+             ) -> None:
+    runs = [Simulator(scenario, dt=dt, backend=b).advance(gains) for b in ("compiled", "numpy")]
     assert runs[0].state.shape[0] == periods
     np.testing.assert_allclose(runs[0].state, runs[1].state, rtol=0, atol=1e-10)
     np.testing.assert_allclose(runs[0].delayed, runs[1].delayed, rtol=0, atol=1e-10)
@@ -65,7 +72,7 @@ def test_three_links_wall_saturation_and_fast_switching(rng):
     forward = SwitchingDelay(0.0, 0.05, dwell=0.0037, mode="extremes", seed=3, batch=2)
     backward = SwitchingDelay(0.001, 0.03, dwell=0.002, seed=4, batch=2)
     scenario = Scenario(params, forward, backward, rng.uniform(-1, 1, size=(2, 3)))
-    _compare(scenario, rng.uniform(0.0, 40.0, size=(80, 2, 6)), 80)
+    _compare(scenario, rng.uniform(0.0, 40.0, size=(80, 2, 6)), 80, THREE_LINK_DT)
 
 
 def test_one_three_link_scenario_takes_the_serial_kernel(rng):
@@ -73,7 +80,7 @@ def test_one_three_link_scenario_takes_the_serial_kernel(rng):
     forward = SwitchingDelay(0.0, 0.05, dwell=0.0037, mode="extremes", seed=5, batch=1)
     backward = SwitchingDelay(0.001, 0.03, dwell=0.002, seed=6, batch=1)
     scenario = Scenario(_three_link(), forward, backward, rng.uniform(-1, 1, size=(1, 3)))
-    _compare(scenario, rng.uniform(0.0, 40.0, size=(40, 1, 6)), 40)
+    _compare(scenario, rng.uniform(0.0, 40.0, size=(40, 1, 6)), 40, THREE_LINK_DT)
 
 
 @pytest.mark.parametrize("delay", [0.0, 0.001, 0.0025, 0.013])
@@ -110,26 +117,26 @@ def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch):
 def test_reads_are_reused_only_when_every_delay_exceeds_the_step():
     delays = np.full((17, 2, 3), 0.002)
     ones = np.ones((2, 3))
-    assert kernel._delays_exceed(delays, ones, 0.00125)
+    assert delays_exceed(delays, ones, 0.00125)
     for short in (0.00125, 0.0, np.nan):
         delays[5, 1, 2] = short
-        assert not kernel._delays_exceed(delays, ones, 0.00125)
-        assert kernel._delays_exceed(delays[:, :, :2], ones[:, :2], 0.00125)
+        assert not delays_exceed(delays, ones, 0.00125)
+        assert delays_exceed(delays[:, :, :2], ones[:, :2], 0.00125)
 
 
 def test_reuse_of_reads_with_one_shape_of_time_and_scales():
     # the delays are shape[s, c] * scale[c, b]: the smallest product decides
     shape = np.full((17, 2, 1), 0.5)
     scale = np.full((2, 40), 0.004)
-    assert kernel._delays_exceed(shape, scale, 0.00125)  # 0.002 s everywhere
+    assert delays_exceed(shape, scale, 0.00125)  # 0.002 s everywhere
     scale[1, 39] = 0.0025
-    assert not kernel._delays_exceed(shape, scale, 0.00125)  # 0.00125 s: not longer
+    assert not delays_exceed(shape, scale, 0.00125)  # 0.00125 s: not longer
     scale[1, 39] = 0.004
     shape[16, 0, 0] = 0.3125
-    assert not kernel._delays_exceed(shape, scale, 0.00125)
+    assert not delays_exceed(shape, scale, 0.00125)
     for bad in (np.nan, -1.0):
         shape[16, 0, 0], scale[0, 3] = 0.5, bad
-        assert not kernel._delays_exceed(shape, scale, 0.00125)
+        assert not delays_exceed(shape, scale, 0.00125)
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from teleopkit import (
     paper_scenarios,
 )
 from teleopkit.delays.profiles import check_delays
+from teleopkit.sim.tableau import ROWS_PER_STEP
 
 GAINS = np.array([12.0, 9.0, 35.0, 28.0])
 
@@ -87,7 +88,7 @@ def test_a_run_calls_the_kernel_in_bounded_pieces_with_the_same_result(monkeypat
     whole = Simulator(scenario).run(0.25, GAINS, chunk=0.25)
     sim = Simulator(scenario)
     # three periods' worth of delay values per call: 25 periods in calls of 3, 3, ..., 1
-    monkeypatch.setattr(simulator, "CALL_VALUES", 3 * 2 * sim.substeps * columns)
+    monkeypatch.setattr(simulator, "CALL_VALUES", 3 * ROWS_PER_STEP * sim.substeps * columns)
     calls = []
     integrate = sim._integrate
     monkeypatch.setattr(sim, "_integrate", lambda g, out: (calls.append(g.shape[0]),

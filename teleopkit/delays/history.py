@@ -1,11 +1,11 @@
 """Channel history: the sender's samples on the integration grid, read back at ``t - T(t)``.
 
 The sender's position and velocity are stored at every grid point ``t_k = k dt``; a read at time
-``s = t - T(t)`` interpolates with the cubic Hermite polynomial through the two neighbouring samples
-and their derivatives, which is exact on cubics and keeps the fourth order of RK4. A read inside the
-current step (``T < dt``) interpolates towards the integrator's current stage, so zero delay returns
-the current value exactly. Before the first sample (``s <= 0``) the receiver holds the initial value
-(constant past).
+``s = t - T(t)`` interpolates with the cubic Hermite polynomial through the two neighbouring
+samples and their derivatives, which is exact on cubics (an interpolation error of order four). A
+read inside the current step (``T < dt``) interpolates towards the integrator's current stage, so
+zero delay returns the current value exactly. Before the first sample (``s <= 0``) the receiver
+holds the initial value (constant past).
 
 This module holds the readable numpy implementation used by :mod:`teleopkit.sim.numpy_integrator`;
 the compiled kernel in :mod:`teleopkit.sim.kernel` implements the same rule and is tested against
@@ -87,14 +87,14 @@ class ChannelHistory:
         self.position[self.index % self.length] = position
         self.velocity[self.index % self.length] = velocity
 
-    def read(self, offset: float, delay: np.ndarray, latest: tuple[np.ndarray, np.ndarray],
+    def read(self, fraction: float, delay: np.ndarray, latest: tuple[np.ndarray, np.ndarray],
              ) -> np.ndarray:
-        """Return the signal at ``t - delay``, ``t = t_k + offset``, ``t_k`` the newest sample.
+        """Return the signal at ``t - delay``, ``t = t_k + fraction dt``, ``t_k`` the newest sample.
 
         Parameters
         ----------
-        offset : float
-            Time since the newest sample, in ``[0, dt]``.
+        fraction : float
+            Time since the newest sample, in steps, in ``[0, 1]``.
         delay : ndarray, shape (B,)
             Delay of each scenario.
         latest : tuple of ndarray, shape (B, n)
@@ -106,7 +106,7 @@ class ChannelHistory:
             The delayed signal.
         """
         k = self.index
-        steps = k + offset / self.dt - np.asarray(delay) / self.dt
+        steps = k + fraction - np.asarray(delay) / self.dt
         j = np.floor(steps).astype(int)
         newest = k % self.length
         j_old = np.minimum(j, k - 1)
@@ -115,9 +115,9 @@ class ChannelHistory:
                       self.velocity[j_old % self.length, self._rows()],
                       self.position[(j_old + 1) % self.length, self._rows()],
                       self.velocity[(j_old + 1) % self.length, self._rows()], self.dt, u_old)
-        u_new = ((steps - k) * self.dt / offset)[:, None] if offset > 0 else 0.0
+        u_new = ((steps - k) / fraction)[:, None] if fraction > 0 else 0.0
         new = hermite(self.position[newest], self.velocity[newest], latest[0], latest[1],
-                      offset, u_new)
+                      fraction * self.dt, u_new)
         out = np.where((j >= k)[:, None], new, old)
         return np.where((steps <= 0)[:, None], self.initial, out)
 

@@ -1,6 +1,7 @@
-"""Compiled (numba) integrator of the teleoperator: fixed-step RK4 with delayed Hermite read-out.
+"""Compiled (numba) integrator of the teleoperator: fixed-step Runge–Kutta, delayed Hermite reads.
 
-It implements, for any number of joints, exactly the model of :mod:`teleopkit.model.dynamics`,
+It implements, for any number of joints and with the method of :mod:`teleopkit.sim.tableau`,
+exactly the model of :mod:`teleopkit.model.dynamics`,
 :mod:`teleopkit.model.laws` and :mod:`teleopkit.delays.history`; the readable
 :mod:`teleopkit.sim.numpy_integrator` is what the tests compare it with. States follow
 :class:`teleopkit.sim.state.StateLayout` (``8 n`` values per scenario; the kernel addresses its
@@ -9,7 +10,7 @@ blocks by constant offsets, which the comparison with the numpy integrator check
 Layout for speed (measured reasons in ``benchmarks/README.md``):
 
 - The batch is cut into blocks of :data:`LANES` scenarios, integrated in parallel (``prange``).
-  Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and each RK4
+  Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and each
   stage runs three loops over lanes without calls or branches (the sine and cosine are an
   inlined polynomial, :func:`~teleopkit.sim.trig.sincos`), which LLVM vectorises: the delayed
   history reads (gathers), the motion (controllers, springs and the two arms' accelerations)
@@ -24,9 +25,10 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
   inlined by numba). The other helpers are ``forceinline`` and take whole arrays plus indices,
   never views or tuples of arrays (both cost reference counting, and views alias).
 - When every delay of a call exceeds the step (no read falls inside the current step), a delayed
-  read depends on the stage time only, and a two-link block reads the history at two of the four
-  RK4 stages: the second midpoint stage and the next step's first stage reuse the reads of the
-  stages at the same times (bit for bit; batch 4096: 1.6 to 1.8 M env-steps/s).
+  read depends on the stage time only, and a two-link block reads the history at four of the six
+  stages: the second stage at a quarter step and the next step's first stage reuse the reads of
+  the stages at the same times (bit for bit; with RK4, whose reads this halved, batch 4096 went
+  from 1.6 to 1.8 M env-steps/s).
 - Delays come as one shape of time per channel times a scale per scenario when both profiles
   have ``factors`` (the paper's Fourier profile, constant delays; see :func:`advance`): the
   kernel multiplies as it reads instead of reading ``S B`` delays sampled by numpy (26 MB per
@@ -52,7 +54,9 @@ from numba import njit, prange
 
 from teleopkit.model.dynamics import inertia_coefficients
 from teleopkit.model.params import TeleoperatorParams, Wall
+from teleopkit.sim._kernel_reads import delay_at, delays_exceed, interpolate, locate
 from teleopkit.sim.state import FIELDS
+from teleopkit.sim.tableau import ROWS, ROWS_PER_STEP, STAGES, A, B, C
 from teleopkit.sim.trig import sincos
 
 __all__ = ["BLOCKS", "LANES", "advance", "kernel_model"]
@@ -67,7 +71,6 @@ BLOCKS = len(FIELDS)
 # Rows of the model array (see kernel_model).
 _KL, _BL, _STIFFNESS, _ROTOR_INV, _WALL, _KS, _KD, _LIMIT, _WALL_K, _WALL_D = range(10)
 _INERTIA = 10
-_STAGE_FRACTIONS = (0.0, 0.5, 0.5, 1.0)
 
 
 def kernel_model(params: TeleoperatorParams) -> np.ndarray:
@@ -97,52 +100,6 @@ def kernel_model(params: TeleoperatorParams) -> np.ndarray:
     return np.vstack([np.array(joint), np.repeat(np.array(scalars)[:, None], n, axis=1),
                       inertia_coefficients(params.local_arm),
                       inertia_coefficients(params.remote_arm)])
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _hermite(x0: float, v0: float, x1: float, v1: float, span: float, u: float) -> float:
-    u2 = u * u
-    u3 = u2 * u
-    return ((2 * u3 - 3 * u2 + 1) * x0 + (u3 - 2 * u2 + u) * span * v0
-            + (3 * u2 - 2 * u3) * x1 + (u3 - u2) * span * v1)
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _locate(k: int, newest: int, frac: float, delay: float, dt: float,
-            length: int) -> tuple[int, int, float, float, bool, bool]:
-    """Locate a delayed read in a channel's history (:class:`~teleopkit.delays.ChannelHistory`).
-
-    ``k`` is the newest stored grid step (ring slot ``newest``), ``frac`` the read time minus
-    ``t_k`` in steps and ``delay`` the delay in seconds. Returns the ring slots ``(a, z)`` of the
-    interval's ends, the fraction ``u`` and length ``span`` of the interval, whether the read falls
-    inside the current step (then the interval ends at the integrator's stage, not at slot ``z``)
-    and whether it falls before ``t = 0`` (constant past). Indices stay inside the buffer
-    whatever the delay.
-    """
-    steps = k + frac - delay / dt
-    inside = steps >= k
-    back = min(max(k - math.floor(steps), 0), length - 2)  # steps from t_k to the start
-    a = newest - back + (length if back > newest else 0)
-    z = a + 1 if a + 1 < length else 0
-    if inside:  # frac is 0, 1/2 or 1: multiplying by 2 is dividing by 1/2, exactly
-        u = (steps - k) * (1.0 if frac == 1.0 else 2.0) if frac > 0.0 else 0.0
-    else:
-        u = steps - (k - back)
-    return a, z, u, (frac * dt if inside else dt), inside, steps <= 0.0
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _interpolate(hist, lane, c, i, where, position, velocity, initial):
-    """Read joint ``i`` of channel ``c`` at the place ``where`` from :func:`_locate`.
-
-    ``position`` and ``velocity`` are the sender's values at the stage.
-    """
-    a, z, u, span, inside, before = where
-    n = initial.shape[2]
-    x1 = position if inside else hist[lane, c, z, i]
-    v1 = velocity if inside else hist[lane, c, z, n + i]
-    value = _hermite(hist[lane, c, a, i], hist[lane, c, a, n + i], x1, v1, span, u)
-    return initial[lane, c, i] if before else value
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -178,16 +135,6 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _delay(delays, scale, row, c, lane):
-    """Channel ``c``'s delay of scenario ``lane`` at input row ``row``, in seconds.
-
-    ``delays`` holds one column per scenario, or one shared column that ``scale`` multiplies
-    (see :func:`advance`).
-    """
-    return delays[row, c, lane if delays.shape[2] > 1 else 0] * scale[c, lane]
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
 def _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st, delayed, b, lo, w):
     """Write lane ``w``'s delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` to ``delayed[b, :, w]``.
 
@@ -198,19 +145,19 @@ def _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st, delayed
     k, newest, row, _ = clock
     lane = lo + w
     length = hist.shape[2]
-    to_remote = _locate(k, newest, frac, _delay(delays, scale, row, 0, lane), dt, length)
-    to_local = _locate(k, newest, frac, _delay(delays, scale, row, 1, lane), dt, length)
-    delayed[b, 0, w] = _interpolate(hist, lane, 0, 0, to_remote, st[b, 0, w], st[b, 2, w], initial)
-    delayed[b, 1, w] = _interpolate(hist, lane, 0, 1, to_remote, st[b, 1, w], st[b, 3, w], initial)
-    delayed[b, 2, w] = _interpolate(hist, lane, 1, 0, to_local, st[b, 8, w], st[b, 10, w], initial)
-    delayed[b, 3, w] = _interpolate(hist, lane, 1, 1, to_local, st[b, 9, w], st[b, 11, w], initial)
+    to_remote = locate(k, newest, frac, delay_at(delays, scale, row, 0, lane), dt, length)
+    to_local = locate(k, newest, frac, delay_at(delays, scale, row, 1, lane), dt, length)
+    delayed[b, 0, w] = interpolate(hist, lane, 0, 0, to_remote, st[b, 0, w], st[b, 2, w], initial)
+    delayed[b, 1, w] = interpolate(hist, lane, 0, 1, to_remote, st[b, 1, w], st[b, 3, w], initial)
+    delayed[b, 2, w] = interpolate(hist, lane, 1, 0, to_local, st[b, 8, w], st[b, 10, w], initial)
+    delayed[b, 3, w] = interpolate(hist, lane, 1, 1, to_local, st[b, 9, w], st[b, 11, w], initial)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, w):
     """Write the motion slopes ``slopes[b, r, :12, w]`` of lane ``w`` of a two-link block.
 
-    The RK4 stage is ``r``, its state ``st[b, :, w]`` and its delayed reads ``delayed[b, :, w]``
+    The stage is ``r``, its state ``st[b, :, w]`` and its delayed reads ``delayed[b, :, w]``
     (:func:`_two_link_delayed`); ``clock`` as there.
     """
     _, _, row, p = clock
@@ -326,11 +273,11 @@ def _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock, fr
     lane = lo + w
     length = hist.shape[2]
     n = initial.shape[2]
-    to_remote = _locate(k, newest, frac, _delay(delays, scale, row, 0, lane), dt, length)
-    to_local = _locate(k, newest, frac, _delay(delays, scale, row, 1, lane), dt, length)
+    to_remote = locate(k, newest, frac, delay_at(delays, scale, row, 0, lane), dt, length)
+    to_local = locate(k, newest, frac, delay_at(delays, scale, row, 1, lane), dt, length)
     for i in range(n):
-        ql = _interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
-        th = _interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
+        ql = interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
+        th = interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
                           initial)
         work[b, n, i], work[b, n + 1, i], slopes[b, r, 5 * n + i, w] = _joint(
             m, i, st[b, i, w], st[b, n + i, w], st[b, 2 * n + i, w], st[b, 3 * n + i, w],
@@ -350,14 +297,40 @@ def _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock, fr
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _stage_entry(xs, slopes, st, b, r, h, v, w):
-    st[b, v, w] = xs[b, v, w] + h * slopes[b, r - 1, v, w] if r > 0 else xs[b, v, w]
+def _stage_entry(xs, k, st, b, r, h, v, w):
+    """``st[b, v, w] = xs[b, v, w] + h sum_j A[r, j] k[b, j, v, w]``.
+
+    Over :data:`A`'s non-zero entries, summed in order as :mod:`.numpy_integrator` does.
+    """
+    x = xs[b, v, w]
+    if r == 0:
+        st[b, v, w] = x
+    elif r == 1:
+        st[b, v, w] = x + h * (A[1, 0] * k[b, 0, v, w])
+    elif r == 2:
+        st[b, v, w] = x + h * (A[2, 0] * k[b, 0, v, w] + A[2, 1] * k[b, 1, v, w])
+    elif r == 3:
+        st[b, v, w] = x + h * (A[3, 1] * k[b, 1, v, w] + A[3, 2] * k[b, 2, v, w])
+    elif r == 4:
+        st[b, v, w] = x + h * (A[4, 0] * k[b, 0, v, w] + A[4, 3] * k[b, 3, v, w])
+    else:
+        st[b, v, w] = x + h * (A[5, 0] * k[b, 0, v, w] + A[5, 1] * k[b, 1, v, w]
+                               + A[5, 2] * k[b, 2, v, w] + A[5, 3] * k[b, 3, v, w]
+                               + A[5, 4] * k[b, 4, v, w])
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _stage_state(xs, slopes, st, b, r, h, width):
-    """``st[b] = xs[b] + h slopes[b, r - 1]`` (``xs[b]`` for the first stage)."""
+    """Stage ``r``'s state of block ``b`` in ``st[b]``, for the blocks a derivative reads.
+
+    The integrated tracking and damping errors and the double integrals are never read by a
+    derivative, so their stage values are not formed.
+    """
+    n = xs.shape[1] // BLOCKS
     for v in range(xs.shape[1]):
+        block = v // n
+        if block == 6 or block == 7 or block == 9 or block == 11:
+            continue
         if width == 1:  # one scenario (module notes)
             _stage_entry(xs, slopes, st, b, r, h, v, 0)
         else:
@@ -366,20 +339,20 @@ def _stage_state(xs, slopes, st, b, r, h, width):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _rk4_entry(xs, slopes, b, dt, v, w):
-    xs[b, v, w] += (dt / 6.0) * (slopes[b, 0, v, w] + 2.0 * slopes[b, 1, v, w]
-                                 + 2.0 * slopes[b, 2, v, w] + slopes[b, 3, v, w])
+def _update_entry(xs, k, b, dt, v, w):
+    xs[b, v, w] += dt * (B[0] * k[b, 0, v, w] + B[2] * k[b, 2, v, w] + B[3] * k[b, 3, v, w]
+                         + B[4] * k[b, 4, v, w] + B[5] * k[b, 5, v, w])
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _rk4_update(xs, slopes, b, dt, width):
-    """Advance ``xs[b]`` by one RK4 step from the four stage slopes."""
+def _step_update(xs, slopes, b, dt, width):
+    """Advance ``xs[b]`` by one step from the stage slopes (weights :data:`B`; ``B[1]`` is 0)."""
     for v in range(xs.shape[1]):
         if width == 1:
-            _rk4_entry(xs, slopes, b, dt, v, 0)
+            _update_entry(xs, slopes, b, dt, v, 0)
         else:
             for w in range(width):
-                _rk4_entry(xs, slopes, b, dt, v, w)
+                _update_entry(xs, slopes, b, dt, v, w)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -418,43 +391,13 @@ def _emit(hist, initial, delays, scale, k, row, p, dt, xs, b, lo, width, out_sta
     for w in range(width):
         lane = lo + w
         for c in range(2):
-            where = _locate(k, k % length, 0.0, _delay(delays, scale, row, c, lane), dt, length)
+            where = locate(k, k % length, 0.0, delay_at(delays, scale, row, c, lane), dt, length)
             for i in range(n):
-                out_delayed[p, lane, c, i] = _interpolate(
+                out_delayed[p, lane, c, i] = interpolate(
                     hist, lane, c, i, where, xs[b, 4 * n * c + i, w],
                     xs[b, 4 * n * c + n + i, w], initial)
         for v in range(xs.shape[1]):
             out_state[p, lane, v] = xs[b, v, w]
-
-
-@njit(cache=True, error_model="numpy")
-def _delays_exceed(delays, scale, dt):
-    """Whether every delay of a call (:func:`_delay`) exceeds ``dt`` (none is NaN).
-
-    A shared column is checked by its smallest value times the smallest scale: products of
-    non-negative numbers round monotonically, so no product is smaller. A negative or NaN factor
-    answers False, which is always safe (the reads are then made at every stage).
-    """
-    if delays.shape[2] > 1:
-        for c in range(2):
-            for row in range(delays.shape[0]):
-                for lane in range(delays.shape[2]):
-                    if not delays[row, c, lane] * scale[c, lane] > dt:
-                        return False
-        return True
-    for c in range(2):
-        low_delay, low_scale = math.inf, math.inf
-        for row in range(delays.shape[0]):
-            if not delays[row, c, 0] >= 0.0:
-                return False
-            low_delay = min(low_delay, delays[row, c, 0])
-        for lane in range(scale.shape[1]):
-            if not scale[c, lane] >= 0.0:
-                return False
-            low_scale = min(low_scale, scale[c, lane])
-        if not low_delay * low_scale > dt:
-            return False
-    return True
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -462,10 +405,11 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_
                    out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width, reuse):
     """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period.
 
-    With ``reuse`` (every delay of the call is longer than ``dt``: :func:`_delays_exceed`) no
-    delayed read falls inside the current step, so a read depends on the stage time only: the
-    second midpoint stage reuses the first's reads and a step's first stage the previous step's
-    last (the same times and delay samples, hence the same values bit for bit).
+    With ``reuse`` (every delay of the call is longer than ``dt``:
+    :func:`~teleopkit.sim._kernel_reads.delays_exceed`) no delayed read falls inside the current
+    step, so a read depends on the stage time only: the second quarter-step stage reuses the
+    first's reads and a step's first stage the previous step's last (the same times and delay
+    samples, hence the same values bit for bit).
     """
     dim = xs.shape[1]
     length = hist.shape[2]
@@ -473,14 +417,15 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_
         for s in range(substeps):
             k = step0 + p * substeps + s
             newest = k % length
-            for r in range(4):
-                clock = (k, newest, 2 * (p * substeps + s) + (r + 1) // 2, p)
-                frac = _STAGE_FRACTIONS[r]
-                _stage_state(xs, slopes, st, b, r, frac * dt, width)
+            for r in range(STAGES):
+                clock = (k, newest, ROWS_PER_STEP * (p * substeps + s) + ROWS[r], p)
+                frac = C[r]
+                _stage_state(xs, slopes, st, b, r, dt, width)
                 # The loops over lanes stay in the parallel body (this helper is inlined there
                 # by numba), where LLVM vectorises them (module notes).
                 if dim == 2 * BLOCKS:
-                    if not (reuse and (r == 2 or (r == 0 and p + s > 0))):
+                    same_time = r > 0 and ROWS[r] == ROWS[r - 1]
+                    if not (reuse and (same_time or (r == 0 and p + s > 0))):
                         for w in range(width):
                             _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st,
                                               delayed, b, lo, w)
@@ -493,18 +438,18 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_
                     for w in range(width):
                         _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock,
                                       frac, dt, st, slopes, b, r, lo, w, work)
-            _rk4_update(xs, slopes, b, dt, width)
+            _step_update(xs, slopes, b, dt, width)
             _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
         _emit(hist, initial, delays, scale, step0 + (p + 1) * substeps,
-              2 * (p + 1) * substeps, p, dt, xs, b, lo, width, out_state, out_delayed)
+              ROWS_PER_STEP * (p + 1) * substeps, p, dt, xs, b, lo, width, out_state, out_delayed)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _scratch(blocks, dim):
-    """Per-block state, stage state, the four RK4 slopes and the generic path's work rows."""
+    """Per-block state, stage state, the stage slopes and the generic path's work rows."""
     n = dim // BLOCKS
     return (np.empty((blocks, dim, LANES)), np.empty((blocks, dim, LANES)),
-            np.empty((blocks, 4, dim, LANES)), np.empty((blocks, n + 5, n)),
+            np.empty((blocks, STAGES, dim, LANES)), np.empty((blocks, n + 5, n)),
             np.empty((blocks, 2 * n, LANES)))
 
 
@@ -517,7 +462,7 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gai
     # arguments.
     xs, st, slopes, work, delayed = _scratch(blocks, dim)
     # Before the parallel loop: a call on an array inside its body would cost the noalias flag.
-    reuse = reuse and _delays_exceed(delays, scale, dt)
+    reuse = reuse and delays_exceed(delays, scale, dt)
     for b in prange(blocks):
         lo = b * LANES
         width = min(LANES, batch - lo)
@@ -533,7 +478,7 @@ def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, scale, qh,
                     out_state, out_delayed, reuse):
     """:func:`_advance` for one scenario, without the parallel loop's launch."""
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
-    reuse = reuse and _delays_exceed(delays, scale, dt)
+    reuse = reuse and delays_exceed(delays, scale, dt)
     _transfer(x, xs, 0, 0, 1, True)
     _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
                    out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
@@ -544,7 +489,7 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
             substeps: int, delays: np.ndarray, scale: np.ndarray, qh: np.ndarray,
             qh_gain: np.ndarray, gains: np.ndarray, model: np.ndarray, out_state: np.ndarray,
             out_delayed: np.ndarray) -> None:
-    """Integrate ``gains.shape[0]`` control periods of ``substeps`` RK4 steps, in place.
+    """Integrate ``gains.shape[0]`` control periods of ``substeps`` steps, in place.
 
     Parameters
     ----------
@@ -562,13 +507,13 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Integration step.
     substeps : int
         Integration steps per control period.
-    delays, scale : ndarray, shapes (2 P substeps + 1, 2, K) and (2, B)
-        Forward and backward delays at every half step from the current time: channel ``c`` of
-        scenario ``b`` at row ``s`` is ``delays[s, c, b] * scale[c, b]`` seconds with ``K = B``
-        (one column per scenario; ``scale`` is then ones), or ``delays[s, c, 0] * scale[c, b]``
-        with ``K = 1`` (one shape of time times a scale per scenario, a profile's
-        ``factors``).
-    qh, qh_gain : ndarray, shapes (2 P substeps + 1, n) and (B, n)
+    delays, scale : ndarray, shapes (4 P substeps + 1, 2, K) and (2, B)
+        Forward and backward delays at every stage time (quarter step) from the current time:
+        channel ``c`` of scenario ``b`` at row ``s`` is ``delays[s, c, b] * scale[c, b]`` seconds
+        with ``K = B`` (one column per scenario; ``scale`` is then ones), or
+        ``delays[s, c, 0] * scale[c, b]`` with ``K = 1`` (one shape of time times a scale per
+        scenario, a profile's ``factors``).
+    qh, qh_gain : ndarray, shapes (4 P substeps + 1, n) and (B, n)
         The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
         with unit gains, times each scenario's gains ``G``).
     gains : ndarray, shape (P, B, 2 n)

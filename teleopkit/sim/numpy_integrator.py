@@ -1,4 +1,4 @@
-"""The readable integrator: numpy, batched, one RK4 step at a time.
+"""The readable integrator: numpy, batched, one Runge–Kutta step at a time.
 
 It states the closed loop the way the paper writes it, using :mod:`teleopkit.model.dynamics`,
 :mod:`teleopkit.model.laws` and :class:`teleopkit.delays.history.ChannelHistory`. The compiled
@@ -14,16 +14,23 @@ from teleopkit.delays.history import ChannelHistory
 from teleopkit.model.dynamics import coriolis_matrix, mass_matrix
 from teleopkit.model.laws import environment_torque, local_torque, operator_torque, remote_torque
 from teleopkit.model.params import PlanarArm, TeleoperatorParams
+from teleopkit.sim import tableau
 from teleopkit.sim.state import StateLayout
 
 __all__ = ["NumpyIntegrator"]
 
-_STAGE_OFFSETS = (0.0, 0.5, 0.5, 1.0)
-_STAGE_ROWS = (0, 1, 1, 2)
+
+def _combine(coefficients: np.ndarray, slopes: list[np.ndarray]) -> np.ndarray:
+    """``sum_j coefficients[j] slopes[j]`` over the non-zero coefficients, in order."""
+    terms = [a * k for a, k in zip(coefficients, slopes, strict=False) if a != 0.0]
+    total = terms[0]
+    for term in terms[1:]:
+        total = total + term
+    return total
 
 
 class NumpyIntegrator:
-    """Fixed-step RK4 of the delayed teleoperator, in numpy.
+    """Fixed-step Runge–Kutta (:mod:`teleopkit.sim.tableau`) of the delayed teleoperator, in numpy.
 
     Parameters
     ----------
@@ -55,9 +62,10 @@ class NumpyIntegrator:
 
         Parameters
         ----------
-        delays : ndarray, shape (2 P substeps + 1, B, 2)
-            Forward and backward delays (seconds) at every half step from the current time.
-        qh : ndarray, shape (2 P substeps + 1, B, n)
+        delays : ndarray, shape (R P substeps + 1, B, 2)
+            Forward and backward delays (seconds) on the stage grid from the current time
+            (``R`` = :data:`~teleopkit.sim.tableau.ROWS_PER_STEP` rows per step).
+        qh : ndarray, shape (R P substeps + 1, B, n)
             Operator reference at the same times.
         gains : ndarray, shape (P, B, 2 n)
             Remote gains ``[K_r, B_r]`` held over each control period.
@@ -69,29 +77,30 @@ class NumpyIntegrator:
         delayed : ndarray, shape (P, B, 2, n)
             ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
         """
+        per_step = tableau.ROWS_PER_STEP
         states, delayed = [], []
         for p, period_gains in enumerate(gains):
             for s in range(self.substeps):
-                row = 2 * (p * self.substeps + s)
-                self._rk4_step(delays[row:row + 3], qh[row:row + 3], period_gains)
-            row_end = 2 * (p + 1) * self.substeps
+                row = per_step * (p * self.substeps + s)
+                self._step(delays[row:row + per_step + 1], qh[row:row + per_step + 1],
+                           period_gains)
+            row_end = per_step * (p + 1) * self.substeps
             states.append(self.state.copy())
             delayed.append(np.stack(self._delayed(self.state, 0.0, delays[row_end]), axis=1))
         return np.array(states), np.array(delayed)
 
-    def _rk4_step(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray) -> None:
+    def _step(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray) -> None:
         slopes: list[np.ndarray] = []
-        for offset, row in zip(_STAGE_OFFSETS, _STAGE_ROWS, strict=True):
-            stage = self.state + offset * self.dt * slopes[-1] if slopes else self.state
+        for coefficients, offset, row in zip(tableau.A, tableau.C, tableau.ROWS, strict=True):
+            stage = self.state + self.dt * _combine(coefficients, slopes) if slopes else self.state
             slopes.append(self.derivative(stage, offset, delays[row], qh[row], gains))
-        k1, k2, k3, k4 = slopes
-        self.state = self.state + self.dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        self.state = self.state + self.dt * _combine(tableau.B, slopes)
         for c, channel in enumerate(self.channels):
             channel.record(*self.layout.channel(self.state, c))
 
     def _delayed(self, x: np.ndarray, offset: float, delays: np.ndarray,
                  ) -> tuple[np.ndarray, np.ndarray]:
-        forward, backward = (channel.read(offset * self.dt, delays[:, c],
+        forward, backward = (channel.read(offset, delays[:, c],
                                           self.layout.channel(x, c))
                              for c, channel in enumerate(self.channels))
         return forward, backward

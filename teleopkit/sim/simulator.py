@@ -1,8 +1,9 @@
 """Batched fixed-step simulator of the delayed teleoperator.
 
 The remote gains are held over each control period (10 ms by default) and the model is integrated
-with RK4 at a fixed step (:data:`~teleopkit.sim.timing.DEFAULT_DT`, 1.25 ms, by default).
-Delays and the operator reference are sampled at every half step in numpy; the compiled kernel
+at a fixed step (:data:`~teleopkit.sim.timing.DEFAULT_DT`, 2.5 ms, by default) with Butcher's
+fifth-order Runge–Kutta method (:mod:`teleopkit.sim.tableau`). Delays and the operator reference
+are sampled at every stage time (quarter steps) in numpy; the compiled kernel
 (``backend="compiled"``, :mod:`teleopkit.sim.kernel`) or the readable numpy integrator
 (``backend="numpy"``, :mod:`teleopkit.sim.numpy_integrator`) integrates. A batch of scenarios
 shares the model; the batch axis comes first in every array.
@@ -23,6 +24,7 @@ from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
 from teleopkit.sim.state import StateLayout
+from teleopkit.sim.tableau import ROWS_PER_STEP
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
 from teleopkit.sim.timing import periods as whole_periods
 from teleopkit.sim.trajectory import StepResult, Trajectory
@@ -239,7 +241,8 @@ class Simulator:
         """Times, delays and their scales, and unit reference at the coming stage times.
 
         Shapes ``(S,)``, ``(S, 2, K)``, ``(2, B)`` and ``(S, n)`` (see :meth:`_sample`): every
-        half step of the next ``periods`` periods, ``S = 2 P substeps + 1``.
+        quarter step (:data:`~teleopkit.sim.tableau.ROWS_PER_STEP`) of the next ``periods``
+        periods, ``S = 4 P substeps + 1``.
 
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
@@ -247,7 +250,7 @@ class Simulator:
         A profile that cannot be sampled that far ahead (one that raises past some time) is
         sampled as needed, so that its error comes when the run reaches that time.
         """
-        rows = 2 * periods * self.substeps + 1
+        rows = ROWS_PER_STEP * periods * self.substeps + 1
         cached = self._inputs
         if cached is None or not cached.covers(self.scenario, self._step, rows):
             ahead = max(rows, LOOKAHEAD_VALUES // self._delay_columns)
@@ -256,13 +259,13 @@ class Simulator:
             except ValueError:
                 cached = self._sample_from_here(rows)
             self._inputs = cached
-        first = 2 * (self._step - cached.step)
+        first = ROWS_PER_STEP * (self._step - cached.step)
         window = slice(first, first + rows)
         return cached.times[window], cached.delays[window], cached.scale, cached.unit[window]
 
     def _sample_from_here(self, rows: int) -> _Inputs:
-        """The inputs at ``rows`` stage times (half steps) from the current step."""
-        times = (self._step + 0.5 * np.arange(rows)) * self.dt
+        """The inputs at ``rows`` stage times (quarter steps) from the current step."""
+        times = (self._step + np.arange(rows) / ROWS_PER_STEP) * self.dt
         return _Inputs(self.scenario, self._step, times, *self._sample(times))
 
     def _empty_record(self, periods: int) -> StepResult:
@@ -275,7 +278,7 @@ class Simulator:
         """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
         times, delays, scale, unit = self._stage_inputs(periods)
-        ends = slice(2 * self.substeps, None, 2 * self.substeps)
+        ends = slice(ROWS_PER_STEP * self.substeps, None, ROWS_PER_STEP * self.substeps)
         out.t[:] = times[ends]
         np.multiply(delays[ends], scale, out=out.delays.transpose(0, 2, 1))
         reference_gains = self.scenario.reference_gains
@@ -328,7 +331,7 @@ class Simulator:
     def _periods_per_call(self, chunk: float | None) -> int:
         """Whole periods per kernel call of :meth:`run` (``chunk`` seconds, or the default)."""
         if chunk is None:
-            return max(1, CALL_VALUES // (2 * self.substeps * self._delay_columns))
+            return max(1, CALL_VALUES // (ROWS_PER_STEP * self.substeps * self._delay_columns))
         if not (math.isfinite(chunk) and chunk > 0):
             raise ValueError(f"chunk must be a positive number of seconds, got {chunk}")
         return max(1, round(chunk / self.control_period))
@@ -399,7 +402,7 @@ class _Inputs:
     def covers(self, scenario: Scenario, step: int, rows: int) -> bool:
         """Whether these are ``scenario``'s inputs for ``rows`` stage times from ``step``."""
         return (scenario is self.scenario and step >= self.step
-                and 2 * (step - self.step) + rows <= self.times.size)
+                and ROWS_PER_STEP * (step - self.step) + rows <= self.times.size)
 
 
 def available_memory() -> int:

@@ -10,10 +10,11 @@ import math
 
 __all__ = ["CONTROL_PERIOD", "DEFAULT_DT", "periods", "substeps"]
 
-DEFAULT_DT = 0.00125
-"""Default integration step (s): 8 RK4 steps per 10 ms control period, at most 7e-6 rad from a
-converged solution over the paper's 40 s episode (2.5 ms, the largest step below RK4's stability
-limit of about 2.7 ms on this model, is 16 times less accurate; ``benchmarks/README.md``)."""
+DEFAULT_DT = 0.0025
+"""Default integration step (s): 4 steps of Butcher's fifth-order method
+(:mod:`teleopkit.sim.tableau`) per 10 ms control period, 1.4e-6 rad from a converged solution over
+the paper's 40 s episode. The local arm's damping (about -1030 1/s) puts the method's stability
+limit near 3.3 ms on this model (at 3.33 ms the run drifts by 2e-2 rad)."""
 
 CONTROL_PERIOD = 0.01
 """Default control period (s): the paper's agent sample time, over which gains are held."""
