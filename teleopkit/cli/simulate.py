@@ -39,7 +39,8 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the operator reference and the delay scales.")
 @click.option("--dt", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DT,
-              show_default=True, help="Integration step [s]; 1.25 ms is accurate to 1e-5 rad.")
+              show_default=True,
+              help="Integration step [s]; the default is within 2e-6 rad of a converged run.")
 @click.option("--out", type=click.Path(path_type=Path), required=True,
               help="CSV file for the trajectory.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
