@@ -334,6 +334,13 @@ def test_resume_refuses_chunks_of_another_spec(tmp_path):
     assert len(run_campaign(changed, out, client="synchronous", chunk=8, resume=False)) == 16
 
 
+def test_a_stiff_plant_runs_at_a_step_it_allows(tmp_path):
+    # half the local arm's masses: the default step is refused above, 1.25 ms is stable
+    data = {"duration": 0.3, "dt": 0.00125, "factors": {"local_mass_scale": [0.5]}}
+    table = run_campaign(data, tmp_path / "stiff.csv", client="synchronous")
+    assert not table["diverged"].any()
+
+
 def test_cli_campaign_writes_the_table_and_exits_0(tmp_path, capsys):
     spec = tmp_path / "c.yaml"
     spec.write_text("duration: 0.3\nfactors:\n  kr: [5, 10, 20]\n")
@@ -352,6 +359,11 @@ def test_cli_campaign_writes_the_table_and_exits_0(tmp_path, capsys):
     ({"factors": {"controller": ["pid"]}}, "values must be 'fixed' or policy:PATH, got 'pid'"),
     ({"factors": {"controller": ["policy:/no/such/policy.npz"]}}, "no policy file"),
     ({"factors": {"controller": ["policy:" + __file__]}}, "is not a teleopkit policy file"),
+    ({"factors": {"local_mass_scale": [1.0, 0.5]}},
+     "local_mass_scale=0.5, kl=25, bl=10: dt = 2.5 ms is beyond the integrator's stability limit"),
+    ({"factors": {"rotor_inertia": [0.1], "br": [30, 400]}},
+     "rotor_inertia=0.1, remote_mass_scale=1, local_mass_scale=1, kl=25, bl=10: br = 400 is "
+     "beyond what dt = 2.5 ms integrates stably on its motor (at most 135.5)"),
 ])
 def test_bad_specs_raise_one_line_value_errors(data, message, tmp_path):
     with pytest.raises(ValueError, match=re.escape(message)) as error:

@@ -28,7 +28,7 @@ import pandas as pd
 
 from teleopkit.delays.profiles import TraceDelay
 from teleopkit.files import atomic_write
-from teleopkit.robustness.chunks import ChunkTask, plan_chunks, simulate_chunk
+from teleopkit.robustness.chunks import ChunkTask, check_steps, plan_chunks, simulate_chunk
 from teleopkit.robustness.factors import factor_dtypes
 from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.robustness.store import ChunkStore
@@ -203,7 +203,9 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     Raises
     ------
     ValueError
-        A bad spec, output path or chunk size, or chunk files of another campaign in the way.
+        A bad spec, output path or chunk size, a plant or gain the step cannot integrate stably
+        (:func:`~teleopkit.robustness.chunks.check_steps`), or chunk files of another campaign
+        in the way.
     CampaignInterrupted
         The cluster gave up on a chunk (see Notes); the finished chunks are kept.
 
@@ -218,6 +220,7 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     spec = _load_spec(spec)
     out = _check_output(out)
     scenarios = spec.expand()
+    check_steps(scenarios, spec.dt)
     chunks = plan_chunks(scenarios, chunk)
     store = ChunkStore(out)
     store.prepare({"fingerprint": spec.fingerprint(), "chunk": int(chunk),

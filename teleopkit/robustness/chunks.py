@@ -36,8 +36,9 @@ from teleopkit.sim.divergence import Divergence
 from teleopkit.sim.metrics import RunningMetrics
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
 from teleopkit.sim.simulator import Simulator
+from teleopkit.sim.stability import check_step, largest_motor_damping
 
-__all__ = ["METRIC_COLUMNS", "ChunkTask", "plan_chunks", "simulate_chunk"]
+__all__ = ["METRIC_COLUMNS", "ChunkTask", "check_steps", "plan_chunks", "simulate_chunk"]
 
 METRIC_COLUMNS = ("rms_track", "iae_track", "max_track", "rms_damp", "iae_damp", "max_damp",
                   "max_position", "growth", "diverged", "unsafe_actions", "wall_time")
@@ -68,6 +69,39 @@ def _model_params(row: Mapping[str, Any]) -> TeleoperatorParams:
         joints=ElasticJoints((float(row["joint_stiffness"]),) * n,
                              (float(row["rotor_inertia"]),) * n),
         local_gains=PDGains.uniform(float(row["kl"]), float(row["bl"]), n))
+
+
+def check_steps(scenarios: pd.DataFrame, dt: float) -> None:
+    """Check, before any simulation, that ``dt`` integrates every plant of a campaign stably.
+
+    Each distinct combination of the model factors is checked for its local arm's damping
+    (:func:`teleopkit.sim.stability.check_step`) and, for fixed gains, its largest ``B_r``.
+
+    Parameters
+    ----------
+    scenarios : DataFrame
+        The campaign's rows (:meth:`~teleopkit.robustness.spec.CampaignSpec.expand`).
+    dt : float
+        Integration step in seconds.
+
+    Raises
+    ------
+    ValueError
+        One line naming the plant's factors and the largest stable step or gain.
+    """
+    for _, rows in scenarios.groupby(list(MODEL_FACTORS), sort=False):
+        row = rows.iloc[0]
+        params = _model_params(row)
+        plant = ", ".join(f"{name}={row[name]:g}" for name in MODEL_FACTORS)
+        try:
+            check_step(params, dt)
+        except ValueError as error:
+            raise ValueError(f"plant {plant}: {error}") from None
+        fixed = rows["br"][rows["controller"] == "fixed"]
+        if len(fixed) and fixed.max() > largest_motor_damping(params, dt):
+            raise ValueError(f"plant {plant}: br = {fixed.max():g} is beyond what dt = "
+                             f"{dt * 1e3:.4g} ms integrates stably on its motor (at most "
+                             f"{largest_motor_damping(params, dt):.4g}); set a smaller dt")
 
 
 @dataclass(frozen=True)

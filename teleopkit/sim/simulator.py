@@ -23,6 +23,7 @@ from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
+from teleopkit.sim.stability import check_step, largest_motor_damping
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.tableau import ROWS_PER_STEP
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
@@ -86,7 +87,8 @@ class Simulator:
     scenario : Scenario
         Teleoperator, delay profiles and operator reference gains (``B`` scenarios).
     dt : float
-        Integration step in seconds.
+        Integration step in seconds, inside the method's stability limit for the model's
+        damping (:mod:`teleopkit.sim.stability`; a longer step raises ``ValueError``).
     control_period : float
         Period over which the remote gains are held, a multiple of ``dt``.
     backend : {"compiled", "numpy"}
@@ -113,6 +115,8 @@ class Simulator:
         self.substeps = substeps(control_period, dt)
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
+        check_step(scenario.params, dt)
+        self._largest_br = largest_motor_damping(scenario.params, dt)
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
@@ -125,6 +129,16 @@ class Simulator:
         self._model = kernel.kernel_model(scenario.params)
         self._inputs: _Inputs | None = None
         self.reset()
+
+    def _checked(self, gains: np.ndarray) -> np.ndarray:
+        """:func:`check_gains`, and motor damping the step integrates stably."""
+        gains = check_gains(gains, self.n_joints)
+        if gains.size and gains[..., self.n_joints:].max() > self._largest_br:
+            raise ValueError(
+                f"remote damping B_r = {gains[..., self.n_joints:].max():.4g} is beyond what "
+                f"dt = {self.dt * 1e3:.4g} ms integrates stably on this motor (at most "
+                f"{self._largest_br:.4g}); pass a smaller dt")
+        return gains
 
     @property
     def _delay_columns(self) -> int:
@@ -226,7 +240,7 @@ class Simulator:
         StepResult
             The state, delayed signals and delays at the end of each period.
         """
-        gains = check_gains(gains, self.n_joints)
+        gains = self._checked(gains)
         if gains.ndim != 3:
             gains = gains.reshape(1, -1, gains.shape[-1])
         shape = (gains.shape[0], self.batch, gains.shape[2])
@@ -361,15 +375,15 @@ class Simulator:
         ------
         ValueError
             If ``duration`` is not a whole number of periods, ``chunk`` is not positive, the
-            gains are negative, not finite or of the wrong shape, or the record would not fit
-            in memory.
+            gains are negative, not finite, of the wrong shape or with a damping ``B_r`` the step
+            cannot integrate stably, or the record would not fit in memory.
         """
         periods = whole_periods(duration, self.control_period)
         per_call = self._periods_per_call(chunk)
         self.check_memory(periods)
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
-        gains = check_gains(gains, self.n_joints)
+        gains = self._checked(gains)
         constant = gains.ndim < 3
         if constant:
             gains = np.broadcast_to(gains, (periods, self.batch, gains.shape[-1]))

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ORDER", "ROWS", "ROWS_PER_STEP", "STAGES", "A", "B", "C"]
+__all__ = ["ORDER", "REAL_STABILITY_LIMIT", "ROWS", "ROWS_PER_STEP", "STAGES", "A", "B", "C"]
 
 STAGES = 6
 """Derivative evaluations per step."""
@@ -43,3 +43,8 @@ ROWS_PER_STEP = 4
 
 ROWS = tuple(round(ROWS_PER_STEP * c) for c in C)
 """Input row of each stage, from the step's first row."""
+
+REAL_STABILITY_LIMIT = 3.3864
+"""Length of the stability interval on the negative real axis: a step is stable on a mode
+``exp(-rate t)`` while ``rate * dt`` is below it (the root of ``R(-z) = 1``, 3.38649, rounded
+down)."""

@@ -1,0 +1,74 @@
+"""The simulator refuses exactly the steps its method cannot integrate stably."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from teleopkit import ConstantDelay, PlanarArm, Scenario, Simulator
+from teleopkit.model.dynamics import mass_matrix
+from teleopkit.model.params import paper_setup
+from teleopkit.sim import simulator as simulator_module
+from teleopkit.sim.stability import largest_motor_damping, local_damping_rate
+from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
+
+LIGHT = replace(paper_setup(), local_arm=PlanarArm((0.38, 0.38), (0.25, 0.175)))
+"""The paper's teleoperator with a local arm half as heavy: its damping twice as fast."""
+
+
+def _scenario(params) -> Scenario:
+    return Scenario(params, ConstantDelay(0.2), ConstantDelay(0.2), np.array([[1.0, -0.7]]))
+
+
+def _rate_at(params, q2: np.ndarray) -> np.ndarray:
+    """Largest eigenvalue of ``M_l(q)^-1 diag(K_d + B_l)`` at each ``q_2``, by numpy's eig."""
+    damping = np.diag(np.asarray(params.local_gains.damping) + params.operator.damping)
+    q = np.stack([np.zeros_like(q2), q2], axis=1)
+    return np.array([np.linalg.eigvals(np.linalg.solve(m, damping)).real.max()
+                     for m in mass_matrix(params.local_arm, q)])
+
+
+def test_two_link_rate_is_the_stretched_arms_and_bounds_every_configuration():
+    rate = local_damping_rate(paper_setup())
+    assert rate == pytest.approx(_rate_at(paper_setup(), np.zeros(1))[0], rel=1e-12)
+    sampled = _rate_at(paper_setup(), np.random.default_rng(0).uniform(-math.pi, math.pi, 2000))
+    assert sampled.max() <= rate * (1 + 1e-12)
+    assert rate == pytest.approx(1030.15, abs=0.01)  # the paper's arm
+    assert local_damping_rate(LIGHT) == pytest.approx(2 * rate, rel=1e-12)
+
+
+def test_the_default_step_is_inside_the_limit_on_the_paper_model():
+    assert local_damping_rate(paper_setup()) * 0.0025 < REAL_STABILITY_LIMIT
+    assert largest_motor_damping(paper_setup(), 0.0025) > 150.0  # the paper's B_r range
+
+
+def test_a_step_beyond_the_limit_is_refused_in_one_line():
+    with pytest.raises(ValueError, match="stability limit") as error:
+        Simulator(_scenario(LIGHT), dt=0.0025)
+    assert "\n" not in str(error.value) and "at most 1.644 ms" in str(error.value)
+    Simulator(_scenario(LIGHT), dt=0.00125)  # 2.58 of 3.39: accepted
+
+
+def test_the_refused_step_really_is_unstable(monkeypatch):
+    """Past the limit the run is wrong, not loud: the saturated torques keep it bounded."""
+    def positions(dt: float) -> np.ndarray:
+        sim = Simulator(_scenario(LIGHT), dt=dt)
+        return sim.run(2.0).state[:, 0, sim.layout.positions]
+
+    converged = positions(0.0003125)
+    assert np.abs(positions(0.00125) - converged).max() < 1e-4
+    monkeypatch.setattr(simulator_module, "check_step", lambda params, dt: None)
+    assert np.abs(positions(0.0025) - converged).max() > 0.05
+
+
+def test_motor_damping_beyond_the_limit_is_refused():
+    sim = Simulator(_scenario(paper_setup()))
+    largest = largest_motor_damping(paper_setup(), sim.dt)
+    sim.advance(np.array([10.0, 10.0, 0.99 * largest, 30.0]))
+    with pytest.raises(ValueError, match="remote damping B_r"):
+        sim.advance(np.array([10.0, 10.0, 30.0, 1.01 * largest]))
+    with pytest.raises(ValueError, match="remote damping B_r"):
+        sim.run(0.1, np.array([10.0, 10.0, 30.0, 1.01 * largest]))
