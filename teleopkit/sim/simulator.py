@@ -23,7 +23,7 @@ from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
-from teleopkit.sim.stability import check_step, largest_motor_damping
+from teleopkit.sim.stability import check_motor_damping, check_step
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.tableau import ROWS_PER_STEP
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
@@ -116,7 +116,6 @@ class Simulator:
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
         check_step(scenario.params, dt)
-        self._largest_br = largest_motor_damping(scenario.params, dt)
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
@@ -133,11 +132,9 @@ class Simulator:
     def _checked(self, gains: np.ndarray) -> np.ndarray:
         """:func:`check_gains`, and motor damping the step integrates stably."""
         gains = check_gains(gains, self.n_joints)
-        if gains.size and gains[..., self.n_joints:].max() > self._largest_br:
-            raise ValueError(
-                f"remote damping B_r = {gains[..., self.n_joints:].max():.4g} is beyond what "
-                f"dt = {self.dt * 1e3:.4g} ms integrates stably on this motor (at most "
-                f"{self._largest_br:.4g}); pass a smaller dt")
+        if gains.size:
+            check_motor_damping(self.scenario.params, self.dt, gains[..., self.n_joints:].max(),
+                                "remote damping B_r")
         return gains
 
     @property

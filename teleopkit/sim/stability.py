@@ -12,7 +12,7 @@ are dampings:
 Beyond the limit the run does not fail loudly: it drifts or grows, which a campaign would count
 as a diverging plant. :class:`~teleopkit.sim.simulator.Simulator` therefore refuses a step the
 model's damping makes unstable (:func:`check_step`) and gains whose motor damping would
-(:func:`largest_motor_damping`).
+(:func:`check_motor_damping`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from teleopkit.model.dynamics import mass_matrix
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
 
-__all__ = ["check_step", "largest_motor_damping", "local_damping_rate"]
+__all__ = ["check_motor_damping", "check_step", "largest_motor_damping", "local_damping_rate"]
 
 _LEVELS = 720
 """Configurations searched for the local arm's smallest inertia (spread over the joints)."""
@@ -105,3 +105,29 @@ def check_step(params: TeleoperatorParams, dt: float) -> None:
             f"dt = {dt * 1e3:.4g} ms is beyond the integrator's stability limit for this model: "
             f"the local arm's damping reaches {rate:.4g} 1/s, so dt must be at most "
             f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms (and divide the control period)")
+
+
+def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
+                        name: str = "B_r") -> None:
+    """Raise if the remote damping gain ``damping`` is too large for ``dt`` on some motor.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+    dt : float
+        Integration step in seconds.
+    damping : float
+        The largest remote damping gain ``B_r`` to be applied.
+    name : str
+        What the message calls the gain.
+
+    Raises
+    ------
+    ValueError
+        If ``damping`` exceeds :func:`largest_motor_damping`.
+    """
+    largest = largest_motor_damping(params, dt)
+    if damping > largest:
+        raise ValueError(f"{name} = {damping:.4g} is beyond what dt = {dt * 1e3:.4g} ms integrates "
+                         f"stably on its motor (at most {largest:.4g}); set a smaller dt")
