@@ -49,6 +49,7 @@ def test_a_step_beyond_the_limit_is_refused_in_one_line():
     with pytest.raises(ValueError, match="stability limit") as error:
         Simulator(_scenario(LIGHT), dt=0.0025)
     assert "\n" not in str(error.value) and "at most 1.644 ms" in str(error.value)
+    assert "at most 1.397 ms to keep its accuracy" in str(error.value)
     Simulator(_scenario(LIGHT), dt=0.00125)  # 2.58 of 3.39: accepted
 
 
