@@ -10,9 +10,14 @@ import pytest
 
 from teleopkit import ConstantDelay, PlanarArm, Scenario, Simulator
 from teleopkit.model.dynamics import mass_matrix
-from teleopkit.model.params import paper_setup
+from teleopkit.model.params import PDGains, paper_setup
 from teleopkit.sim import simulator as simulator_module
-from teleopkit.sim.stability import largest_motor_damping, local_damping_rate
+from teleopkit.sim.stability import (
+    ACCURATE_FRACTION,
+    accurate_step,
+    largest_motor_damping,
+    local_damping_rate,
+)
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
 
 LIGHT = replace(paper_setup(), local_arm=PlanarArm((0.38, 0.38), (0.25, 0.175)))
@@ -49,7 +54,7 @@ def test_a_step_beyond_the_limit_is_refused_in_one_line():
     with pytest.raises(ValueError, match="stability limit") as error:
         Simulator(_scenario(LIGHT), dt=0.0025)
     assert "\n" not in str(error.value) and "at most 1.644 ms" in str(error.value)
-    assert "at most 1.397 ms to keep its accuracy" in str(error.value)
+    assert "dt = 1.25 ms (8 steps per control period) also keeps its accuracy" in str(error.value)
     Simulator(_scenario(LIGHT), dt=0.00125)  # 2.58 of 3.39: accepted
 
 
@@ -61,7 +66,7 @@ def test_the_refused_step_really_is_unstable(monkeypatch):
 
     converged = positions(0.0003125)
     assert np.abs(positions(0.00125) - converged).max() < 1e-4
-    monkeypatch.setattr(simulator_module, "check_step", lambda params, dt: None)
+    monkeypatch.setattr(simulator_module, "check_step", lambda *args: None)
     assert np.abs(positions(0.0025) - converged).max() > 0.05
 
 
@@ -73,3 +78,22 @@ def test_motor_damping_beyond_the_limit_is_refused():
         sim.advance(np.array([10.0, 10.0, 30.0, 1.01 * largest]))
     with pytest.raises(ValueError, match="remote damping B_r"):
         sim.run(0.1, np.array([10.0, 10.0, 30.0, 1.01 * largest]))
+
+
+@pytest.mark.parametrize(("damping", "step"), [(10.0, 0.0025), (12.0, 0.002), (6.0, 0.0025)])
+def test_the_accurate_step_keeps_1e5_rad_where_the_stable_step_loses_it(damping, step):
+    """Within 0.85 of the limit the default method stays within 1e-5 rad over 20 s; local
+    ``B_l = 12`` puts 2.5 ms at 0.89 of it, stable but over 1e-5 rad off, and 2 ms is proposed."""
+    params = replace(paper_setup(), local_gains=PDGains((25.0, 25.0), (damping, damping)))
+    assert accurate_step(params) == pytest.approx(step, rel=1e-12)
+    rate = local_damping_rate(params)
+    assert rate * step <= ACCURATE_FRACTION * REAL_STABILITY_LIMIT
+
+    def positions(dt: float) -> np.ndarray:
+        sim = Simulator(_scenario(params), dt=dt)
+        return sim.run(20.0, chunk=20.0).state[:, 0, sim.layout.positions]
+
+    converged = positions(0.000125)
+    assert np.abs(positions(step) - converged).max() < 1e-5
+    if step < 0.0025:
+        assert np.abs(positions(0.0025) - converged).max() > 1e-5

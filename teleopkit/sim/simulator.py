@@ -115,7 +115,7 @@ class Simulator:
         self.substeps = substeps(control_period, dt)
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
-        check_step(scenario.params, dt)
+        check_step(scenario.params, dt, control_period)
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints

@@ -26,14 +26,15 @@ import numpy as np
 from teleopkit.model.dynamics import mass_matrix
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
+from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
-__all__ = ["ACCURATE_FRACTION", "check_motor_damping", "check_step", "largest_motor_damping",
-           "local_damping_rate"]
+__all__ = ["ACCURATE_FRACTION", "accurate_step", "check_motor_damping", "check_step",
+           "largest_motor_damping", "local_damping_rate"]
 
 ACCURATE_FRACTION = 0.85
 """Fraction of the stability limit up to which a step keeps its accuracy. Closer to the limit the
 step is stable but the damped mode is followed less closely: on the paper's model with the local
-damping ``K_d`` raised, 20 s runs at 2.5 ms were 6.7e-6 rad from the converged run at 0.86 of the
+damping ``B_l`` raised, 20 s runs at 2.5 ms were 6.7e-6 rad from the converged run at 0.86 of the
 limit, 1.3e-5 at 0.89 and 5.0e-5 at 0.95 (1.4e-6 at the paper's 0.76)."""
 
 _LEVELS = 720
@@ -91,7 +92,41 @@ def largest_motor_damping(params: TeleoperatorParams, dt: float) -> float:
     return REAL_STABILITY_LIMIT / dt * min(params.joints.rotor_inertia)
 
 
-def check_step(params: TeleoperatorParams, dt: float) -> None:
+def accurate_step(params: TeleoperatorParams, control_period: float = CONTROL_PERIOD) -> float:
+    """Longest step that divides ``control_period`` and keeps the accuracy on ``params``.
+
+    That is, within :data:`ACCURATE_FRACTION` of the stability limit for the local arm's damping
+    (:func:`local_damping_rate`), and no longer than the default step
+    (:data:`~teleopkit.sim.timing.DEFAULT_DT`): a longer one follows a strongly damped remote
+    motor less closely (at 3.33 ms, ``B_r = 120``: 1.7e-5 rad over 20 s for the methods stable
+    there). The remote motors' stability depends on the gains and is checked by
+    :func:`check_motor_damping`.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+    control_period : float
+        Gain hold period in seconds.
+
+    Returns
+    -------
+    float
+        ``control_period / N`` for the smallest such whole ``N``.
+
+    Examples
+    --------
+    >>> from teleopkit.model.params import paper_setup
+    >>> round(accurate_step(paper_setup()) * 1e3, 6)  # ms: the default step
+    2.5
+    """
+    longest = min(ACCURATE_FRACTION * REAL_STABILITY_LIMIT / local_damping_rate(params),
+                  DEFAULT_DT)
+    return control_period / math.ceil(control_period / longest - 1e-9)
+
+
+def check_step(params: TeleoperatorParams, dt: float,
+               control_period: float = CONTROL_PERIOD) -> None:
     """Raise if ``dt`` is too long for the local arm's damping (:func:`local_damping_rate`).
 
     Parameters
@@ -100,20 +135,23 @@ def check_step(params: TeleoperatorParams, dt: float) -> None:
         The teleoperator.
     dt : float
         Integration step in seconds.
+    control_period : float
+        Gain hold period in seconds (the message proposes a step that divides it).
 
     Raises
     ------
     ValueError
-        If ``dt`` times the damping rate exceeds the method's stability limit.
+        If ``dt`` times the damping rate exceeds the method's stability limit; the message names
+        the limit and :func:`accurate_step`.
     """
     rate = local_damping_rate(params)
     if rate * dt > REAL_STABILITY_LIMIT:
+        step = accurate_step(params, control_period)
         raise ValueError(
             f"dt = {dt * 1e3:.4g} ms is beyond the integrator's stability limit for this model: "
             f"the local arm's damping reaches {rate:.4g} 1/s, so dt must be at most "
-            f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms, and at most "
-            f"{ACCURATE_FRACTION * REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms to keep its accuracy "
-            f"(and divide the control period)")
+            f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms; dt = {step * 1e3:.4g} ms "
+            f"({round(control_period / step)} steps per control period) also keeps its accuracy")
 
 
 def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
