@@ -18,6 +18,7 @@ from teleopkit import (
     Wall,
     paper_scenarios,
 )
+from teleopkit.delays.profiles import delay_floor
 from teleopkit.model.params import (
     ElasticJoints,
     InitialState,
@@ -101,11 +102,15 @@ def test_batched_two_links_with_reads_inside_the_step(rng):
     _compare(scenario, rng.uniform(1.0, 50.0, size=(30, LANES + 1, 4)), 30)
 
 
-def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch):
-    # delays longer than the step: a stage reuses the reads of the stage at the same time
-    forward = SwitchingDelay(0.002, 0.05, dwell=0.0037, seed=9, batch=LANES + 1)
+@pytest.mark.parametrize("dwell", [0.0037, 0.005])
+def test_reused_delayed_reads_are_the_same_bits(rng, monkeypatch, dwell):
+    # delays longer than the step (3 ms > 2.5 ms): a stage reuses the reads of the stage at the
+    # same time; switches inside steps (3.7 ms) and at step ends (5 ms, left limits)
+    forward = SwitchingDelay(0.003, 0.05, dwell=dwell, seed=9, batch=LANES + 1)
     scenario = replace(paper_scenarios(rng, batch=LANES + 1), forward=forward)
+    assert min(delay_floor(forward), delay_floor(scenario.backward)) > DEFAULT_DT
     gains = rng.uniform(1.0, 50.0, size=(30, LANES + 1, 4))
+    _compare(scenario, gains, 30)
     reused = Simulator(scenario).advance(gains)
     real = kernel._advance
     monkeypatch.setattr(kernel, "_advance", lambda *args: real(*args[:-1], False))

@@ -10,7 +10,15 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from teleopkit import ConstantDelay, FourierDelay, Operator, PDGains, Scenario, Simulator
+from teleopkit import (
+    ConstantDelay,
+    FourierDelay,
+    Operator,
+    PDGains,
+    Scenario,
+    Simulator,
+    SwitchingDelay,
+)
 from teleopkit.model.dynamics import coriolis_matrix, kinetic_energy, mass_matrix, remote_energy
 from teleopkit.model.laws import environment_torque, local_torque, operator_torque, remote_torque
 from teleopkit.model.params import paper_setup
@@ -153,6 +161,23 @@ def test_integration_error_falls_as_the_fifth_power_of_the_step(delay):
     assert np.all((orders > 4.6) & (orders < 5.4)), orders
     assert errors[0] < 1e-5  # the default step, 2.5 ms, meets 1e-5 rad
     assert errors[0] > errors[1] > errors[2]
+
+
+def test_delay_jumps_on_the_step_grid_keep_the_fifth_order():
+    """A step that ends at a delay switch integrates the old delay: its last stage reads the left
+    limit, the next step's first the new value. Reading the new value at both (what sampling
+    the profile at the step's end gives) made the error first order, 7e-5 rad at 2.5 ms."""
+    profile = SwitchingDelay(0.1, 0.9, dwell=0.5, mode="extremes", seed=2)
+
+    def positions(dt: float) -> np.ndarray:
+        sim = Simulator(Scenario(paper_setup(), profile, profile, np.array([[1.0, 1.0]])),
+                        dt=dt)
+        return sim.run(10.0, ACCURACY_GAINS, chunk=10.0).state[:, 0, sim.layout.positions]
+
+    converged = positions(0.000125)
+    errors = np.array([np.abs(positions(dt) - converged).max() for dt in (0.0025, 0.00125)])
+    assert errors[0] < 1e-5
+    assert np.log2(errors[0] / errors[1]) > 4.5, errors
 
 
 def test_paper_scenario_with_certified_gains_is_stable_and_tracks():

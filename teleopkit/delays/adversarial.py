@@ -16,13 +16,17 @@ from teleopkit.delays.profiles import check_delays, declared_bound
 
 __all__ = ["PiecewiseDelay", "SquareWaveDelay"]
 
+_AT = 1e-9
+"""Seconds within which a time is at a switching time: times on a step grid carry rounding."""
+
 
 @dataclass(frozen=True)
 class PiecewiseDelay:
     """Per-scenario delays, constant between switching times.
 
     Scenario ``b`` has the delay ``values[b, k]`` on ``[times[b, k], times[b, k + 1])`` (the last
-    value holds forever; before ``times[b, 0]`` the first value holds).
+    value holds forever; before ``times[b, 0]`` the first value holds); a time within a
+    nanosecond of a switching time is at it.
 
     Parameters
     ----------
@@ -37,6 +41,8 @@ class PiecewiseDelay:
     times: np.ndarray
     values: np.ndarray
     bound: float = math.nan
+    jumps = True
+    """It is constant between switches (:mod:`teleopkit.delays.jumps`)."""
 
     def __post_init__(self) -> None:
         times = np.atleast_2d(np.asarray(self.times, dtype=float))
@@ -73,7 +79,26 @@ class PiecewiseDelay:
             Delays in seconds.
         """
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        segment = np.sum(t[:, None, None] >= self.times[None], axis=-1) - 1
+        return self._on(np.sum(t[:, None, None] + _AT >= self.times[None], axis=-1) - 1)
+
+    def sample_left(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays just before the times ``t`` (at a switch: the old value).
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delays in seconds.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self._on(np.sum(t[:, None, None] - _AT > self.times[None], axis=-1) - 1)
+
+    def _on(self, segment: np.ndarray) -> np.ndarray:
+        """The values of the segments ``segment`` ``(S, B)`` (before the first: the first)."""
         segment = np.clip(segment, 0, self.times.shape[1] - 1)
         return np.take_along_axis(self.values.T, segment, axis=0)
 
@@ -103,6 +128,8 @@ class SquareWaveDelay:
     half_period: np.ndarray
     phase: np.ndarray
     bound: float = math.nan
+    jumps = True
+    """It is constant between switches (:mod:`teleopkit.delays.jumps`)."""
 
     def __post_init__(self) -> None:
         arrays = [np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
@@ -140,5 +167,24 @@ class SquareWaveDelay:
             Delays in seconds.
         """
         t = np.atleast_1d(np.asarray(t, dtype=float))[:, None]
-        odd = np.floor((t + self.phase) / self.half_period + 1e-9) % 2 == 1
-        return np.where(odd, self.high, self.low)
+        return self._on(np.floor((t + self.phase) / self.half_period + 1e-9))
+
+    def sample_left(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays just before the times ``t`` (at a switch: the old value).
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delays in seconds.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))[:, None]
+        return self._on(np.ceil((t + self.phase) / self.half_period - 1e-9) - 1)
+
+    def _on(self, half: np.ndarray) -> np.ndarray:
+        """The delays on the half periods ``half`` ``(S, B)`` (even: low, odd: high)."""
+        return np.where(half % 2 == 1, self.high, self.low)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from teleopkit.delays.jumps import has_jumps, sample_left
 from teleopkit.delays.profiles import (
     ConstantDelay,
     DelayProfile,
@@ -78,6 +79,26 @@ class ScaledDelay:
             Delays in seconds.
         """
         return self.factor * self.profile.sample(t)
+
+    @property
+    def jumps(self) -> bool:
+        """Whether the profile jumps (:mod:`teleopkit.delays.jumps`)."""
+        return has_jumps(self.profile)
+
+    def sample_left(self, t: np.ndarray) -> np.ndarray:
+        """Return the scaled delays just before the times ``t``, shape ``(S, B)``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delays in seconds.
+        """
+        return self.factor * sample_left(self.profile, t)
 
 
 def scale_delay(profile: DelayProfile, factor: float) -> DelayProfile:
@@ -163,6 +184,27 @@ class StackedDelay:
             Delays in seconds, ``B`` the total batch of the parts.
         """
         values = np.concatenate([part.sample(t) for part in self.parts], axis=1)
+        return values[:, list(self.order)]
+
+    @property
+    def jumps(self) -> bool:
+        """Whether some part jumps (:mod:`teleopkit.delays.jumps`)."""
+        return any(has_jumps(part) for part in self.parts)
+
+    def sample_left(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays just before the times ``t``, shape ``(S, B)``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delays in seconds, ``B`` the total batch of the parts.
+        """
+        values = np.concatenate([sample_left(part, t) for part in self.parts], axis=1)
         return values[:, list(self.order)]
 
 

@@ -45,7 +45,8 @@ class DelayProfile(Protocol):
     A profile that is one shape of time times a scale per scenario may also have a method
     ``factors(t)`` returning ``(shape (S,), scale (B,))`` whose outer product is ``sample(t)``
     bit for bit (:meth:`FourierDelay.factors`); the simulator then keeps one column of delays
-    for the whole batch.
+    for the whole batch. A profile that jumps has ``jumps = True`` and a method
+    ``sample_left(t)``, its left limits (:mod:`teleopkit.delays.jumps`).
     """
 
     @property
@@ -415,6 +416,8 @@ class SwitchingDelay:
     mode: Literal["uniform", "extremes"] = "uniform"
     seed: int = 0
     batch: int = 1
+    jumps = True
+    """It is constant between switches (:mod:`teleopkit.delays.jumps`)."""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.high) and 0 <= self.low <= self.high):
@@ -455,8 +458,27 @@ class SwitchingDelay:
         ValueError
             If a delay is negative, non-finite or above ``bound``.
         """
-        interval = np.floor(_times(t) / self.dwell + 1e-9).astype(np.int64)
-        u = _uniform_hash(self.seed, interval[:, None], np.arange(self.batch)[None, :])
+        return self._on(np.floor(_times(t) / self.dwell + 1e-9))
+
+    def sample_left(self, t: np.ndarray) -> np.ndarray:
+        """Return the delays just before the times ``t`` (at a switch: the old value).
+
+        Parameters
+        ----------
+        t : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, B)
+            Delay in seconds at each time, one column per scenario.
+        """
+        return self._on(np.ceil(_times(t) / self.dwell - 1e-9) - 1)
+
+    def _on(self, interval: np.ndarray) -> np.ndarray:
+        """The delays held on the intervals ``interval`` (indices, as floats)."""
+        u = _uniform_hash(self.seed, interval.astype(np.int64)[:, None],
+                          np.arange(self.batch)[None, :])
         if self.mode == "extremes":
             u = np.round(u)
         return check_delays(type(self).__name__, self.low + (self.high - self.low) * u, self.bound)

@@ -28,7 +28,8 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
   read depends on the stage time only, and a two-link block reads the history at four of the six
   stages: the second stage at a quarter step and the next step's first stage reuse the reads of
   the stages at the same times (bit for bit; with RK4, whose reads this halved, batch 4096 went
-  from 1.6 to 1.8 M env-steps/s).
+  from 1.6 to 1.8 M env-steps/s). Delays that jump (:mod:`teleopkit.delays.jumps`) keep the
+  step's first read: its last stage reads the left limits at the step's end.
 - Delays come as one shape of time per channel times a scale per scenario when both profiles
   have ``factors`` (the paper's Fourier profile, constant delays; see :func:`advance`): the
   kernel multiplies as it reads instead of reading ``S B`` delays sampled by numpy (26 MB per
@@ -144,18 +145,19 @@ def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st, delayed, b, lo, w):
+def _two_link_delayed(hist, initial, delays, drow, scale, clock, frac, dt, st, delayed, b, lo, w):
     """Write lane ``w``'s delayed reads ``[q_l1, q_l2, theta_1, theta_2]`` to ``delayed[b, :, w]``.
 
-    The stage state is ``st[b, :, w]``; ``clock`` is ``(k, newest, row, p)``: newest stored grid
-    step, its ring slot, input row of the stage time and control period; ``frac`` is the stage
-    time minus ``t_k`` in steps and ``lo`` the block's first scenario.
+    The stage state is ``st[b, :, w]``, its delays row ``drow`` of ``delays``; ``clock`` is
+    ``(k, newest, row, p)``: newest stored grid step, its ring slot, input row of the stage time
+    and control period; ``frac`` is the stage time minus ``t_k`` in steps and ``lo`` the block's
+    first scenario.
     """
-    k, newest, row, _ = clock
+    k, newest, _, _ = clock
     lane = lo + w
     length = hist.shape[2]
-    to_remote = locate(k, newest, frac, delay_at(delays, scale, row, 0, lane), dt, length)
-    to_local = locate(k, newest, frac, delay_at(delays, scale, row, 1, lane), dt, length)
+    to_remote = locate(k, newest, frac, delay_at(delays, scale, drow, 0, lane), dt, length)
+    to_local = locate(k, newest, frac, delay_at(delays, scale, drow, 1, lane), dt, length)
     delayed[b, 0, w] = interpolate(hist, lane, 0, 0, to_remote, st[b, 0, w], st[b, 2, w], initial)
     delayed[b, 1, w] = interpolate(hist, lane, 0, 1, to_remote, st[b, 1, w], st[b, 3, w], initial)
     delayed[b, 2, w] = interpolate(hist, lane, 1, 0, to_local, st[b, 8, w], st[b, 10, w], initial)
@@ -271,19 +273,20 @@ def _cholesky_solve(work, b, row):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock, frac, dt, st, slopes,
-                  b, r, lo, w, work):
+def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clock, frac, dt, st,
+                  slopes, b, r, lo, w, work):
     """The reads, motion and integrands of the two-link loops, for any number of joints.
 
     One loop body does what :func:`_two_link_delayed`, :func:`_two_link_lane` and
-    :func:`_two_link_integrands` do; ``work[b]`` ``(n + 5, n)`` is scratch.
+    :func:`_two_link_integrands` do, with the stage's delays in row ``drow`` of ``delays``;
+    ``work[b]`` ``(n + 5, n)`` is scratch.
     """
     k, newest, row, p = clock
     lane = lo + w
     length = hist.shape[2]
     n = initial.shape[2]
-    to_remote = locate(k, newest, frac, delay_at(delays, scale, row, 0, lane), dt, length)
-    to_local = locate(k, newest, frac, delay_at(delays, scale, row, 1, lane), dt, length)
+    to_remote = locate(k, newest, frac, delay_at(delays, scale, drow, 0, lane), dt, length)
+    to_local = locate(k, newest, frac, delay_at(delays, scale, drow, 1, lane), dt, length)
     for i in range(n):
         ql = interpolate(hist, lane, 0, i, to_remote, st[b, i, w], st[b, n + i, w], initial)
         th = interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
@@ -408,18 +411,21 @@ def _emit(hist, initial, delays, scale, k, row, p, dt, xs, b, lo, width, out_sta
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
-                   out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width, reuse):
+def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+                   gains, out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width,
+                   reuse):
     """Integrate block ``b`` (scenarios ``lo`` to ``lo + width``) over every period.
 
     With ``reuse`` (every delay of the call is longer than ``dt``:
     :func:`~teleopkit.sim._kernel_reads.delays_exceed`) no delayed read falls inside the current
     step, so a read depends on the stage time only: the second quarter-step stage reuses the
     first's reads and a step's first stage the previous step's last (the same times and delay
-    samples, hence the same values bit for bit).
+    samples, hence the same values bit for bit; not when the delays jump, whose left limit the
+    last stage reads).
     """
     dim = xs.shape[1]
     length = hist.shape[2]
+    jumps = left.shape[0] > 0
     for p in range(gains.shape[0]):
         for s in range(substeps):
             k = step0 + p * substeps + s
@@ -431,19 +437,27 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_
                 # The loops over lanes stay in the parallel body (this helper is inlined there
                 # by numba), where LLVM vectorises them (module notes).
                 if dim == 2 * BLOCKS:
-                    if not (reuse and (r == _REPEATED or (r == 0 and p + s > 0))):
+                    if jumps and r == STAGES - 1:  # the left limits at the step's end
                         for w in range(width):
-                            _two_link_delayed(hist, initial, delays, scale, clock, frac, dt, st,
-                                              delayed, b, lo, w)
+                            _two_link_delayed(hist, initial, left, p * substeps + s, scale,
+                                              clock, frac, dt, st, delayed, b, lo, w)
+                    elif not (reuse and (r == _REPEATED or (r == 0 and p + s > 0 and not jumps))):
+                        for w in range(width):
+                            _two_link_delayed(hist, initial, delays, clock[2], scale, clock, frac,
+                                              dt, st, delayed, b, lo, w)
                     for w in range(width):
                         _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r,
                                        lo, w)
                     for w in range(width):
                         _two_link_integrands(st, delayed, slopes, b, r, w)
+                elif jumps and r == STAGES - 1:
+                    for w in range(width):
+                        _generic_lane(m, hist, initial, left, p * substeps + s, scale, qh, qh_gain,
+                                      gains, clock, frac, dt, st, slopes, b, r, lo, w, work)
                 else:
                     for w in range(width):
-                        _generic_lane(m, hist, initial, delays, scale, qh, qh_gain, gains, clock,
-                                      frac, dt, st, slopes, b, r, lo, w, work)
+                        _generic_lane(m, hist, initial, delays, clock[2], scale, qh, qh_gain,
+                                      gains, clock, frac, dt, st, slopes, b, r, lo, w, work)
             _step_update(xs, slopes, b, dt, width)
             _record(hist, newest + 1 if newest + 1 < length else 0, xs, b, lo, width)
         _emit(hist, initial, delays, scale, step0 + (p + 1) * substeps,
@@ -460,7 +474,7 @@ def _scratch(blocks, dim):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
+def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain, gains,
              out_state, out_delayed, reuse):
     batch, dim = x.shape
     blocks = (batch + LANES - 1) // LANES
@@ -473,28 +487,28 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gai
         lo = b * LANES
         width = min(LANES, batch - lo)
         _transfer(x, xs, b, lo, width, True)
-        _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
-                       out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width,
+        _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+                       gains, out_state, out_delayed, xs, st, slopes, work, delayed, b, lo, width,
                        reuse)
         _transfer(x, xs, b, lo, width, False)
 
 
 @njit(cache=True, error_model="numpy")
-def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
-                    out_state, out_delayed, reuse):
+def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+                    gains, out_state, out_delayed, reuse):
     """:func:`_advance` for one scenario, without the parallel loop's launch."""
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
     reuse = reuse and delays_exceed(delays, scale, dt)
     _transfer(x, xs, 0, 0, 1, True)
-    _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
-                   out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
+    _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+                   gains, out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
     _transfer(x, xs, 0, 0, 1, False)
 
 
 def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt: float,
-            substeps: int, delays: np.ndarray, scale: np.ndarray, qh: np.ndarray,
-            qh_gain: np.ndarray, gains: np.ndarray, model: np.ndarray, out_state: np.ndarray,
-            out_delayed: np.ndarray) -> None:
+            substeps: int, delays: np.ndarray, scale: np.ndarray, left: np.ndarray,
+            qh: np.ndarray, qh_gain: np.ndarray, gains: np.ndarray, model: np.ndarray,
+            out_state: np.ndarray, out_delayed: np.ndarray) -> None:
     """Integrate ``gains.shape[0]`` control periods of ``substeps`` steps, in place.
 
     Parameters
@@ -519,6 +533,10 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         with ``K = B`` (one column per scenario; ``scale`` is then ones), or
         ``delays[s, c, 0] * scale[c, b]`` with ``K = 1`` (one shape of time times a scale per
         scenario, a profile's ``factors``).
+    left : ndarray, shape (P substeps, 2, K) or (0, 2, K)
+        For delays that jump (:mod:`teleopkit.delays.jumps`): their left limits at the end of
+        every step, in the factors of ``delays``, which the step's last stage reads (the next
+        step's first reads row ``4 (j + 1)`` of ``delays``). Empty for continuous delays.
     qh, qh_gain : ndarray, shapes (4 P substeps + 1, n) and (B, n)
         The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
         with unit gains, times each scenario's gains ``G``).
@@ -532,8 +550,8 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
     """
     # the last argument allows reusing delayed reads (the tests turn it off to compare)
-    args = (model, x, hist, initial, step0, dt, substeps, delays, scale, qh, qh_gain, gains,
-            out_state, out_delayed, True)
+    args = (model, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+            gains, out_state, out_delayed, True)
     if x.shape[0] == 1:  # one scenario: the parallel launch and thread cap cost a fifth
         _advance_single(*args)
         return

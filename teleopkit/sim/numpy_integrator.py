@@ -57,7 +57,7 @@ class NumpyIntegrator:
                               for c in (0, 1))
 
     def advance(self, delays: np.ndarray, qh: np.ndarray, gains: np.ndarray,
-                ) -> tuple[np.ndarray, np.ndarray]:
+                left: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Integrate ``gains.shape[0]`` control periods.
 
         Parameters
@@ -69,6 +69,9 @@ class NumpyIntegrator:
             Operator reference at the same times.
         gains : ndarray, shape (P, B, 2 n)
             Remote gains ``[K_r, B_r]`` held over each control period.
+        left : ndarray, shape (P substeps, B, 2), optional
+            For delays that jump: their left limits at the end of every step, read by the
+            step's last stage (:mod:`teleopkit.delays.jumps`).
 
         Returns
         -------
@@ -81,9 +84,12 @@ class NumpyIntegrator:
         states, delayed = [], []
         for p, period_gains in enumerate(gains):
             for s in range(self.substeps):
-                row = per_step * (p * self.substeps + s)
-                self._step(delays[row:row + per_step + 1], qh[row:row + per_step + 1],
-                           period_gains)
+                step = p * self.substeps + s
+                row = per_step * step
+                window = delays[row:row + per_step + 1]
+                if left is not None:
+                    window = np.concatenate([window[:-1], left[step][None]])
+                self._step(window, qh[row:row + per_step + 1], period_gains)
             row_end = per_step * (p + 1) * self.substeps
             states.append(self.state.copy())
             delayed.append(np.stack(self._delayed(self.state, 0.0, delays[row_end]), axis=1))

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from teleopkit.delays.jumps import has_jumps, sample_left
 from teleopkit.delays.profiles import ConstantDelay, DelayProfile
 from teleopkit.delays.spec import check_duration, parse_delay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
@@ -119,8 +120,11 @@ class Simulator:
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
+        channels = (scenario.forward, scenario.backward)
+        # delays that jump are read at their left limits by each step's last stage
+        self._jumps = any(has_jumps(p) for p in channels)
         # the kernel reads one shape of time per channel when both profiles have factors
-        self._factored = all(hasattr(p, "factors") for p in (scenario.forward, scenario.backward))
+        self._factored = not self._jumps and all(hasattr(p, "factors") for p in channels)
         self.dt = dt
         self.control_period = control_period
         self.backend = backend
@@ -247,13 +251,13 @@ class Simulator:
         self._integrate(gains, result)
         return result
 
-    def _stage_inputs(self, periods: int,
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Times, delays and their scales, and unit reference at the coming stage times.
+    def _stage_inputs(self, periods: int) -> _Inputs:
+        """Times, delays and their scales, left limits and unit reference at the stage times.
 
-        Shapes ``(S,)``, ``(S, 2, K)``, ``(2, B)`` and ``(S, n)`` (see :meth:`_sample`): every
-        quarter step (:data:`~teleopkit.sim.tableau.ROWS_PER_STEP`) of the next ``periods``
-        periods, ``S = 4 P substeps + 1``.
+        Shapes ``(S,)``, ``(S, 2, K)``, ``(2, B)``, ``(P substeps, 2, K)`` (empty for continuous
+        delays) and ``(S, n)`` (see :meth:`_sample`): every quarter step
+        (:data:`~teleopkit.sim.tableau.ROWS_PER_STEP`) of the next ``periods`` periods,
+        ``S = 4 P substeps + 1``, and the end of each of their steps.
 
         The inputs are functions of time alone, so they are sampled ahead, up to
         :data:`LOOKAHEAD_VALUES` delay values, and sliced by later calls: a control period of
@@ -270,14 +274,22 @@ class Simulator:
             except ValueError:
                 cached = self._sample_from_here(rows)
             self._inputs = cached
-        first = ROWS_PER_STEP * (self._step - cached.step)
-        window = slice(first, first + rows)
-        return cached.times[window], cached.delays[window], cached.scale, cached.unit[window]
+        first = self._step - cached.step
+        window = slice(ROWS_PER_STEP * first, ROWS_PER_STEP * first + rows)
+        steps = slice(first, first + periods * self.substeps)
+        return _Inputs(self.scenario, self._step, cached.times[window], cached.delays[window],
+                       cached.scale, cached.left[steps], cached.unit[window])
 
     def _sample_from_here(self, rows: int) -> _Inputs:
         """The inputs at ``rows`` stage times (quarter steps) from the current step."""
         times = (self._step + np.arange(rows) / ROWS_PER_STEP) * self.dt
-        return _Inputs(self.scenario, self._step, times, *self._sample(times))
+        delays, scale, unit = self._sample(times)
+        ends = times[ROWS_PER_STEP::ROWS_PER_STEP] if self._jumps else times[:0]
+        left = np.empty((ends.size, 2, self._delay_columns))
+        for c, profile in enumerate((self.scenario.forward, self.scenario.backward)):
+            if ends.size:
+                left[:, c] = sample_left(profile, ends)
+        return _Inputs(self.scenario, self._step, times, delays, scale, left, unit)
 
     def _empty_record(self, periods: int) -> StepResult:
         """Uninitialised arrays for ``periods`` recorded times."""
@@ -288,7 +300,9 @@ class Simulator:
     def _integrate(self, gains: np.ndarray, out: StepResult) -> None:
         """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
-        times, delays, scale, unit = self._stage_inputs(periods)
+        inputs = self._stage_inputs(periods)
+        times, delays, scale, left, unit = (inputs.times, inputs.delays, inputs.scale,
+                                            inputs.left, inputs.unit)
         ends = slice(ROWS_PER_STEP * self.substeps, None, ROWS_PER_STEP * self.substeps)
         out.t[:] = times[ends]
         np.multiply(delays[ends], scale, out=out.delays.transpose(0, 2, 1))
@@ -296,10 +310,10 @@ class Simulator:
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
                 (delays * scale).transpose(0, 2, 1), reference_gains[None] * unit[:, None],
-                gains)
+                gains, (left * scale).transpose(0, 2, 1) if self._jumps else None)
         else:
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
-                           self.substeps, delays, scale, unit, reference_gains,
+                           self.substeps, delays, scale, left, unit, reference_gains,
                            np.ascontiguousarray(gains), self._model, out.state, out.delayed)
         self._step += periods * self.substeps
 
@@ -408,6 +422,7 @@ class _Inputs:
     times: np.ndarray
     delays: np.ndarray
     scale: np.ndarray
+    left: np.ndarray
     unit: np.ndarray
 
     def covers(self, scenario: Scenario, step: int, rows: int) -> bool:
