@@ -138,7 +138,7 @@ class Simulator:
         gains = check_gains(gains, self.n_joints)
         if gains.size:
             check_motor_damping(self.scenario.params, self.dt, gains[..., self.n_joints:].max(),
-                                "remote damping B_r")
+                                "remote damping B_r", self.control_period)
         return gains
 
     @property

@@ -155,7 +155,7 @@ def check_step(params: TeleoperatorParams, dt: float,
 
 
 def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
-                        name: str = "B_r") -> None:
+                        name: str = "B_r", control_period: float = CONTROL_PERIOD) -> None:
     """Raise if the remote damping gain ``damping`` is too large for ``dt`` on some motor.
 
     Parameters
@@ -168,13 +168,21 @@ def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
         The largest remote damping gain ``B_r`` to be applied.
     name : str
         What the message calls the gain.
+    control_period : float
+        Gain hold period in seconds (the message proposes a step that divides it).
 
     Raises
     ------
     ValueError
-        If ``damping`` exceeds :func:`largest_motor_damping`.
+        If ``damping`` exceeds :func:`largest_motor_damping`; the message proposes the longest
+        step dividing the control period that keeps both dampings within
+        :data:`ACCURATE_FRACTION` of the limit.
     """
     largest = largest_motor_damping(params, dt)
     if damping > largest:
+        accurate = ACCURATE_FRACTION * largest_motor_damping(params, 1.0) / damping
+        step = control_period / math.ceil(
+            control_period / min(accurate, accurate_step(params, control_period)) - 1e-9)
         raise ValueError(f"{name} = {damping:.4g} is beyond what dt = {dt * 1e3:.4g} ms integrates "
-                         f"stably on its motor (at most {largest:.4g}); set a smaller dt")
+                         f"stably on its motor (at most {largest:.4g}); dt = {step * 1e3:.4g} ms "
+                         f"integrates it stably and accurately")
