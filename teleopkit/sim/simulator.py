@@ -284,12 +284,20 @@ class Simulator:
         """The inputs at ``rows`` stage times (quarter steps) from the current step."""
         times = (self._step + np.arange(rows) / ROWS_PER_STEP) * self.dt
         delays, scale, unit = self._sample(times)
+        return _Inputs(self.scenario, self._step, times, delays, scale, self._sample_left(times),
+                       unit)
+
+    def _sample_left(self, times: np.ndarray) -> np.ndarray:
+        """Left limits ``(S // 4, 2, K)`` of jumping delays at the step ends among ``times``.
+
+        See :mod:`teleopkit.delays.jumps`; continuous delays have none, ``(0, 2, K)``.
+        """
         ends = times[ROWS_PER_STEP::ROWS_PER_STEP] if self._jumps else times[:0]
         left = np.empty((ends.size, 2, self._delay_columns))
-        for c, profile in enumerate((self.scenario.forward, self.scenario.backward)):
-            if ends.size:
+        if self._jumps:
+            for c, profile in enumerate((self.scenario.forward, self.scenario.backward)):
                 left[:, c] = sample_left(profile, ends)
-        return _Inputs(self.scenario, self._step, times, delays, scale, left, unit)
+        return left
 
     def _empty_record(self, periods: int) -> StepResult:
         """Uninitialised arrays for ``periods`` recorded times."""
@@ -301,8 +309,8 @@ class Simulator:
         """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
         inputs = self._stage_inputs(periods)
-        times, delays, scale, left, unit = (inputs.times, inputs.delays, inputs.scale,
-                                            inputs.left, inputs.unit)
+        times, delays, scale, left = inputs.times, inputs.delays, inputs.scale, inputs.left
+        unit = inputs.unit
         ends = slice(ROWS_PER_STEP * self.substeps, None, ROWS_PER_STEP * self.substeps)
         out.t[:] = times[ends]
         np.multiply(delays[ends], scale, out=out.delays.transpose(0, 2, 1))

@@ -120,8 +120,12 @@ def accurate_step(params: TeleoperatorParams, control_period: float = CONTROL_PE
     >>> round(accurate_step(paper_setup()) * 1e3, 6)  # ms: the default step
     2.5
     """
-    longest = min(ACCURATE_FRACTION * REAL_STABILITY_LIMIT / local_damping_rate(params),
-                  DEFAULT_DT)
+    return _dividing(control_period, min(
+        ACCURATE_FRACTION * REAL_STABILITY_LIMIT / local_damping_rate(params), DEFAULT_DT))
+
+
+def _dividing(control_period: float, longest: float) -> float:
+    """The longest step that divides ``control_period`` and is at most ``longest``."""
     return control_period / math.ceil(control_period / longest - 1e-9)
 
 
@@ -181,8 +185,7 @@ def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
     largest = largest_motor_damping(params, dt)
     if damping > largest:
         accurate = ACCURATE_FRACTION * largest_motor_damping(params, 1.0) / damping
-        step = control_period / math.ceil(
-            control_period / min(accurate, accurate_step(params, control_period)) - 1e-9)
+        step = _dividing(control_period, min(accurate, accurate_step(params, control_period)))
         raise ValueError(f"{name} = {damping:.4g} is beyond what dt = {dt * 1e3:.4g} ms integrates "
                          f"stably on its motor (at most {largest:.4g}); dt = {step * 1e3:.4g} ms "
                          f"integrates it stably and accurately")
