@@ -220,7 +220,7 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     spec = _load_spec(spec)
     out = _check_output(out)
     scenarios = spec.expand()
-    check_steps(scenarios, spec.dt)
+    check_steps(scenarios, spec.dt, spec.control_period)
     chunks = plan_chunks(scenarios, chunk)
     store = ChunkStore(out)
     store.prepare({"fingerprint": spec.fingerprint(), "chunk": int(chunk),

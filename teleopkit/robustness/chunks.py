@@ -71,7 +71,7 @@ def _model_params(row: Mapping[str, Any]) -> TeleoperatorParams:
         local_gains=PDGains.uniform(float(row["kl"]), float(row["bl"]), n))
 
 
-def check_steps(scenarios: pd.DataFrame, dt: float) -> None:
+def check_steps(scenarios: pd.DataFrame, dt: float, control_period: float) -> None:
     """Check, before any simulation, that ``dt`` integrates every plant of a campaign stably.
 
     Each distinct combination of the model factors is checked for its local arm's damping
@@ -83,6 +83,8 @@ def check_steps(scenarios: pd.DataFrame, dt: float) -> None:
         The campaign's rows (:meth:`~teleopkit.robustness.spec.CampaignSpec.expand`).
     dt : float
         Integration step in seconds.
+    control_period : float
+        Gain hold period in seconds (the message proposes a step that divides it).
 
     Raises
     ------
@@ -95,9 +97,9 @@ def check_steps(scenarios: pd.DataFrame, dt: float) -> None:
         plant = ", ".join(f"{name}={row[name]:g}" for name in MODEL_FACTORS)
         fixed = rows["br"][rows["controller"] == "fixed"]
         try:
-            check_step(params, dt)
+            check_step(params, dt, control_period)
             if len(fixed):
-                check_motor_damping(params, dt, fixed.max(), "br")
+                check_motor_damping(params, dt, fixed.max(), "br", control_period)
         except ValueError as error:
             raise ValueError(f"plant {plant}: {error}") from None
 
