@@ -183,8 +183,7 @@ class StackedDelay:
         ndarray, shape (S, B)
             Delays in seconds, ``B`` the total batch of the parts.
         """
-        values = np.concatenate([part.sample(t) for part in self.parts], axis=1)
-        return values[:, list(self.order)]
+        return self._joined([part.sample(t) for part in self.parts])
 
     @property
     def jumps(self) -> bool:
@@ -204,8 +203,11 @@ class StackedDelay:
         ndarray, shape (S, B)
             Delays in seconds, ``B`` the total batch of the parts.
         """
-        values = np.concatenate([sample_left(part, t) for part in self.parts], axis=1)
-        return values[:, list(self.order)]
+        return self._joined([sample_left(part, t) for part in self.parts])
+
+    def _joined(self, values: list[np.ndarray]) -> np.ndarray:
+        """The parts' columns side by side, in :attr:`order`."""
+        return np.concatenate(values, axis=1)[:, list(self.order)]
 
 
 def _merge(kind: type, members: list[DelayProfile]) -> DelayProfile:

@@ -309,20 +309,21 @@ class Simulator:
         """Simulate ``gains.shape[0]`` periods of checked gains ``(P, B, 2 n)`` into ``out``."""
         periods = gains.shape[0]
         inputs = self._stage_inputs(periods)
-        times, delays, scale, left = inputs.times, inputs.delays, inputs.scale, inputs.left
-        unit = inputs.unit
+        scale = inputs.scale
         ends = slice(ROWS_PER_STEP * self.substeps, None, ROWS_PER_STEP * self.substeps)
-        out.t[:] = times[ends]
-        np.multiply(delays[ends], scale, out=out.delays.transpose(0, 2, 1))
+        out.t[:] = inputs.times[ends]
+        np.multiply(inputs.delays[ends], scale, out=out.delays.transpose(0, 2, 1))
         reference_gains = self.scenario.reference_gains
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
-                (delays * scale).transpose(0, 2, 1), reference_gains[None] * unit[:, None],
-                gains, (left * scale).transpose(0, 2, 1) if self._jumps else None)
+                (inputs.delays * scale).transpose(0, 2, 1),
+                reference_gains[None] * inputs.unit[:, None], gains,
+                (inputs.left * scale).transpose(0, 2, 1) if self._jumps else None)
         else:
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
-                           self.substeps, delays, scale, left, unit, reference_gains,
-                           np.ascontiguousarray(gains), self._model, out.state, out.delayed)
+                           self.substeps, inputs.delays, scale, inputs.left, inputs.unit,
+                           reference_gains, np.ascontiguousarray(gains), self._model, out.state,
+                           out.delayed)
         self._step += periods * self.substeps
 
     def record_bytes(self, periods: int) -> int:
