@@ -44,7 +44,7 @@ summary = pd.read_csv(out / "summary.csv")
 summary[["controller", "certificate", "covered", "cost", "rms_track", "rms_damp"]].round(4)
 
 # %%
-# The paper's tuner is cheaper than the best static gains (about 18 % on 32 scenarios) only by
+# The paper's tuner is cheaper than the best static gains (about 21 % on 32 scenarios) only by
 # switching its gains faster than its certificate covers. Under the covering ``scheduled:2``
 # certificate the tuner and the best static gains of that class cost the same: within the
 # class, the schedule brings no gain on this task.

@@ -72,7 +72,8 @@ def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
     The other settings are the defaults of teleopkit.rl.training.TrainConfig: 40 s episodes, the
-    paper's TD3 with learning rates 1e-3, best policy kept by validation cost.
+    paper's TD3 with learning rates 1e-3 and discount 0.95, best policy kept by
+    validation cost.
     """
     from teleopkit.rl.training import CHECKPOINT, TrainConfig, train
 
