@@ -66,8 +66,8 @@ STATIC = (8, 4, 30) if SMALL else (16, 8, 200)
 # ``learning_starts`` transitions use uniform random gains (projected like every other action)
 # and fill the replay buffer; the networks' input standardisation is fixed from them. The agent
 # settings, :class:`teleopkit.rl.td3.TD3Config`, are the paper's except for the learning rates
-# (the defaults of ``TrainConfig``; the docstring says why), here with a smaller minibatch on the
-# small budget.
+# and the discount (the defaults of ``TrainConfig``; the docstring says why), here with a smaller
+# minibatch on the small budget.
 env_config = FlexTeleopConfig(episode_length=EPISODE)
 per_round = ENVS * env_config.max_steps
 config = TrainConfig(
@@ -78,7 +78,7 @@ config = TrainConfig(
     learning_starts=per_round,  # the first round explores with random gains
     buffer_size=ROUNDS * per_round,  # keeps every transition of this short run
     validation_scenarios=VALIDATION,
-    td3=TD3Config(actor_lr=1e-3, critic_lr=1e-3, batch_size=BATCH),
+    td3=TD3Config(discount=0.95, actor_lr=1e-3, critic_lr=1e-3, batch_size=BATCH),
 )
 print(f"{config.total_steps} transitions in {ROUNDS} rounds of {per_round}")
 
