@@ -46,12 +46,13 @@ targets.
 
 Tried on 2026-12-04 and not adopted (discount 0.99 unless said; best static validation cost
 9138): batches of 256 instead of 512 make a round a quarter shorter (17.6 against 23.4 s) but
-learn less per round (at best 6.7 % below within 14 rounds, 230 s); starting the actor at the best
-static gains (``TD3Config.start``, 14 s to find them) gives their cost at round 1, 25 662 in the
-first learning round while the critics are still untrained, and at best 7.9 % below within 10
-rounds; more scenarios per round with the same 4000 updates per round (32: first 10 % below at
-round 11, 296 s; 64: at best 5.1 % below within 8 rounds); soft target updates four times faster
-(``tau = 0.02``; at best 6.5 % below within 12 rounds).
+learn less per round (at best 6.7 % below within 14 rounds, 230 s; with the discount of 0.95,
+rounds of 22 against 28 s: seed 0 first 10 % below at round 9, 175 s, seed 1 not within 9);
+starting the actor at the best static gains (``TD3Config.start``, 14 s to find them) gives their
+cost at round 1, 25 662 in the first learning round while the critics are still untrained, and
+at best 7.9 % below within 10 rounds; more scenarios per round with the same 4000 updates per
+round (32: first 10 % below at round 11, 296 s; 64: at best 5.1 % below within 8 rounds); soft
+target updates four times faster (``tau = 0.02``; at best 6.5 % below within 12 rounds).
 """
 
 from __future__ import annotations
