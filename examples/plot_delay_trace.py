@@ -2,12 +2,13 @@
 Bring your own delay trace
 ==========================
 
-Delays measured on a real network can drive the simulator directly: a CSV file with a time
-column and a delay column (seconds) becomes a :class:`teleopkit.TraceDelay`, linearly interpolated
-between samples and held after the last one. This tutorial writes such a file with pandas,
-simulates with it from the one-line spec ``delay="csv:PATH"`` (the same trace on both channels)
-and with the delay API (different traces per channel), and checks that the gains used are
-certified for the trace's bound.
+Delays measured on a real network can drive the simulator directly: a CSV file with a time column
+and a delay column (seconds) becomes a :class:`teleopkit.TraceDelay`, linearly interpolated between
+samples. It must start at ``t = 0`` (or before) and, for a run, last as long as the run: recorded
+timestamps are refused rather than extrapolated, and so is a trace shorter than the run. This
+tutorial writes such a file with pandas, simulates with it from the one-line spec
+``delay="csv:PATH"`` (the same trace on both channels) and with the delay API (different traces per
+channel), and checks that the gains used are certified for the trace's bound.
 """
 
 # %%
@@ -44,8 +45,9 @@ pd.read_csv(path).head()
 # %%
 # From the one-line spec
 # ----------------------
-# ``csv:PATH`` is what ``teleopkit simulate --delay csv:PATH`` uses. The file needs a time and a
-# delay column: named ``t`` and ``delay``, or else the first two columns are taken.
+# ``csv:PATH`` is what ``teleopkit simulate --delay csv:PATH`` uses. The file needs a time column
+# (``t`` or ``time``) and a delay column (``delay`` or ``latency``), each name with an optional
+# unit suffix (``_s``, ``_ms``, ``_us``; seconds without one), for example ``t,delay_ms``.
 table = tk.simulate(gains=(10.0, 30.0), duration=DURATION, delay=f"csv:{path}", seed=0)
 table[["t", "Tl", "Tr", "e_track_1"]].describe().loc[["min", "max"]]
 

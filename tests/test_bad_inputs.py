@@ -21,6 +21,8 @@ from teleopkit.cli import main
 from teleopkit.delays import PiecewiseDelay, TraceDelay, parse_delay
 from teleopkit.model.linearize import linearized_state_space
 from teleopkit.model.params import ElasticJoints, PDGains, paper_setup
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.evaluation import rollout
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.adversary import SearchSpace
 from teleopkit.robustness.campaign import run_campaign
@@ -120,6 +122,13 @@ CLI_CASES = [
      "got '0.5x'"),
     ([*SIM, "--delay", "csv:{tmp}/trace.csv"], write("trace.csv", "t,delay\n0,0.1\n0,0.2\n"),
      "Invalid value for '--delay': delay trace times must be strictly increasing"),
+    ([*SIM, "--delay", "csv:{tmp}/trace.csv"],
+     write("trace.csv", "t,delay\n1764806400.5,0.1\n1764806401.5,0.2\n"),
+     "Invalid value for '--delay': delay trace starts at 1.76481e+09 s, after t = 0 where runs "
+     "start: subtract its first time from its times"),
+    ([*SIM, "--delay", "csv:{tmp}/trace.csv"], write("trace.csv", "t,delay\n0,0.1\n10,0.2\n"),
+     "the delay trace ends at 10 s, before the 40 s run does: record a longer trace or shorten "
+     "the run"),
     ([*SIM, "--delay", "csv:{tmp}/trace.csv"], write("trace.csv", "time,lag\n0,0.1\n1,0.2\n"),
      "Invalid value for '--delay': delay trace {tmp}/trace.csv has no delay column (delay or "
      "latency, optionally with _s, _ms or _us); its columns: time, lag"),
@@ -304,6 +313,15 @@ API_CASES = [
      "campaign samples is for mode: random (a grid crosses all levels)"),
     (lambda: CampaignSpec.from_dict({"factors": {"delay": ["csv:/no/such/trace.csv"]}}),
      "cannot read delay trace /no/such/trace.csv: No such file or directory"),
+    (lambda: CampaignSpec.from_dict({"duration": 3, "factors": {"delay": [
+        "csv:" + write_trace("t,delay\n0,0.1\n2.5,0.2\n")]}}),
+     "factor 'delay': csv:trace.csv: the delay trace ends at 2.5 s, before the 3 s run does: "
+     "record a longer trace or shorten the run"),
+    (lambda: rollout(lambda obs: np.full((len(obs), 4), 10.0), 1,
+                     config=FlexTeleopConfig(episode_length=1.0),
+                     delay="csv:" + write_trace("t,delay\n0,0.1\n0.5,0.2\n")),
+     "the delay trace ends at 0.5 s, before the 1 s run does: record a longer trace or shorten "
+     "the run"),
     (lambda: CampaignSpec.from_dict({"factors": ["kr"]}),
      "campaign factors must be a mapping of factor names to values"),
     (lambda: run_campaign(TINY, "campaign.parquet", chunk=0),

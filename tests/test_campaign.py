@@ -131,7 +131,7 @@ def test_a_row_reproduces_simulate_from_its_own_columns(tmp_path):
 
 def test_local_cluster_and_synchronous_scheduler_give_identical_rows(tmp_path):
     trace = tmp_path / "trace.csv"
-    trace.write_text("t,delay\n0,0.2\n0.3,0.6\n")
+    trace.write_text("t,delay\n0,0.2\n0.3,0.6\n4,0.4\n")
     spec = {**TINY, "factors": {**TINY["factors"],
                                 "delay": ["paper", "constant:0.3", f"csv:{trace}"]}}
     sync = run_campaign(spec, tmp_path / "sync.parquet", client="synchronous", chunk=5)
@@ -238,7 +238,8 @@ def _kill_campaign(tmp_path, allowed_failures: int):
     import dask
 
     trace = tmp_path / "trace.csv"
-    trace.write_text("t,delay\n0,0.2\n0.3,0.6\n")  # scattered to every worker: must survive too
+    # scattered to every worker: must survive too
+    trace.write_text("t,delay\n0,0.2\n0.3,0.6\n4,0.4\n")
     spec = {"duration": 4.0, "factors": {"kr": {"linspace": [5, 40, 12]},
                                          "delay": ["paper", f"csv:{trace}"]}}
     sync = run_campaign(spec, tmp_path / "sync.parquet", client="synchronous", chunk=1)

@@ -488,10 +488,14 @@ class SwitchingDelay:
 class TraceDelay:
     """A recorded delay trace, linearly interpolated and held constant after its last sample.
 
+    Runs start at ``t = 0``, so the trace must start there or earlier: a later start (recorded
+    timestamps, for example) is refused rather than extrapolated. :func:`teleopkit.simulate`
+    and campaigns also refuse a trace that ends before their run does.
+
     Parameters
     ----------
     times : ndarray, shape (N,)
-        Strictly increasing sample times in seconds.
+        Strictly increasing sample times in seconds, the first at or before 0.
     delays : ndarray, shape (N,)
         Delay at each sample time in seconds.
     bound : float, optional
@@ -511,6 +515,9 @@ class TraceDelay:
             raise ValueError("delay trace contains non-finite values")
         if np.any(np.diff(times) <= 0):
             raise ValueError("delay trace times must be strictly increasing")
+        if times[0] > 0:
+            raise ValueError(f"delay trace starts at {times[0]:g} s, after t = 0 where runs "
+                             "start: subtract its first time from its times")
         if np.any(delays < 0):
             raise ValueError(f"delay trace has a negative delay ({delays.min():.6g} s)")
         object.__setattr__(self, "times", times)

@@ -18,7 +18,7 @@ from teleopkit.delays.profiles import (
 )
 from teleopkit.delays.units import seconds
 
-__all__ = ["check_duration", "parse_delay"]
+__all__ = ["check_duration", "check_trace_ends", "parse_delay"]
 
 
 _SPECS = "paper, constant:T, sine:MEAN:AMP:FREQ, switching:LOW:HIGH:DWELL or csv:PATH"
@@ -86,7 +86,10 @@ def _number(text: str, name: str) -> float:
 
 
 def check_duration(profiles: tuple[DelayProfile, DelayProfile], duration: float) -> None:
-    """Refuse delays that reach the run's length: almost always a number meant in ms.
+    """Refuse delays that reach the run's length, and traces that end before it.
+
+    A delay as long as the run is almost always a number meant in milliseconds; a recorded
+    trace that ends early would hold its last delay (:func:`check_trace_ends`).
 
     Parameters
     ----------
@@ -98,11 +101,34 @@ def check_duration(profiles: tuple[DelayProfile, DelayProfile], duration: float)
     Raises
     ------
     ValueError
-        One line with the delay, the duration and the unit to use.
+        One line with the delay (or the trace's end), the duration and what to change.
     """
+    check_trace_ends(profiles, duration)
     bound = max(profile.bound for profile in profiles)
     if bound >= duration:
         hint = (f"; delays are in seconds: {bound:g} milliseconds is written {bound:g}ms (a "
                 "trace column delay_ms)" if bound > 1 else "")
         raise ValueError(f"the delay reaches {bound:g} s, not shorter than the {duration:g} s "
                          f"run{hint}")
+
+
+def check_trace_ends(profiles: tuple[DelayProfile, DelayProfile], duration: float) -> None:
+    """Refuse a recorded trace that ends before the run does: it would hold its last delay.
+
+    Parameters
+    ----------
+    profiles : tuple of DelayProfile
+        Forward and backward delays (only :class:`~teleopkit.delays.profiles.TraceDelay`
+        profiles are checked).
+    duration : float
+        Length of the run in seconds.
+
+    Raises
+    ------
+    ValueError
+        One line with the trace's end and the run's length.
+    """
+    ends = [float(p.times[-1]) for p in profiles if isinstance(p, TraceDelay)]
+    if ends and min(ends) < duration:
+        raise ValueError(f"the delay trace ends at {min(ends):g} s, before the {duration:g} s "
+                         "run does: record a longer trace or shorten the run")

@@ -27,7 +27,7 @@ import pandas as pd
 from gymnasium.utils import seeding
 
 from teleopkit.certification.classes import parse_gain_variation
-from teleopkit.delays.spec import parse_delay
+from teleopkit.delays.spec import check_trace_ends, parse_delay
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
 from teleopkit.sim.scenarios import paper_scenarios
 from teleopkit.sim.trajectory import Trajectory
@@ -182,6 +182,7 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
     scenario = paper_scenarios(rng, scenarios, core.config.params)  # what TeleopBatch.draw draws
     if delay != "paper":
         forward, backward = parse_delay(delay, rng)
+        check_trace_ends((forward, backward), core.config.episode_length)
         scenario = replace(scenario, forward=forward, backward=backward)
     obs = core.start(scenario)
     records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": []}

@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from teleopkit.delays.profiles import TraceDelay
-from teleopkit.delays.spec import parse_delay
+from teleopkit.delays.spec import check_trace_ends, parse_delay
 from teleopkit.model.params import paper_setup
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.factors import FACTORS, Factor, factor_dtypes
@@ -134,7 +134,8 @@ class CampaignSpec:
             reference_gains(str(gain), paper_setup().n_joints, None)
         # the files a campaign needs are read once, here: bad ones are refused before a run
         object.__setattr__(self, "_traces", {
-            str(d): _read_trace(str(d), self.base_dir) for d in self.factor("delay").levels
+            str(d): _read_trace(str(d), self.base_dir, self.duration)
+            for d in self.factor("delay").levels
             if _check_delay(str(d))})
         object.__setattr__(self, "_policies", {
             str(c): _read_policy(str(c), self.base_dir)
@@ -347,8 +348,14 @@ def resolve(spec: str, base_dir: str) -> Path:
     return path if path.is_absolute() or not base_dir else Path(base_dir) / path
 
 
-def _read_trace(spec: str, base_dir: str) -> TraceDelay:
-    return TraceDelay.from_csv(resolve(spec, base_dir))
+def _read_trace(spec: str, base_dir: str, duration: float) -> TraceDelay:
+    """The trace of a ``csv:PATH`` level, refused if it cannot drive a whole run."""
+    trace = TraceDelay.from_csv(resolve(spec, base_dir))
+    try:
+        check_trace_ends((trace, trace), duration)
+    except ValueError as error:
+        raise ValueError(f"factor 'delay': {spec}: {error}") from None
+    return trace
 
 
 def _is_policy(spec: str) -> bool:
