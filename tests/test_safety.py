@@ -184,6 +184,19 @@ def test_random_polygons_match_the_reference(polytope, raw):
     np.testing.assert_allclose(result.action, layer.project_qp(raw), rtol=0, atol=1e-7)
 
 
+def test_the_reference_is_exact_far_from_the_set():
+    """From 190 gain units away Clarabel stops 1e-4 short of a bound; the polish must still
+    find the exact projection (it once kept the solver's point)."""
+    box = GainPolytope.from_box(GainBox.uniform((0.0, 50.0), (0.0, 150.0)))
+    cuts = np.array([[np.cos(1.0), 0.0, np.sin(1.0), 0.0], [np.cos(5.0), 0.0, np.sin(5.0), 0.0]])
+    polytope = box.intersect(cuts, np.array([7.90886645, -2.37631045]), ("cut 0", "cut 1"))
+    layer = SafetyLayer(polytope)
+    raw = np.array([200.0, 12.0, -1e-5, -1e-5])
+    exact = layer.project(raw).action
+    assert exact[3] == 0.0
+    np.testing.assert_allclose(layer.project_qp(raw), exact, rtol=0, atol=1e-9)
+
+
 def test_uncertified_certificate_is_refused():
     lmi = dataclasses.replace(CERT, method="lmi", certified=False, polytope_certified=False,
                               violation="LMI infeasible")
