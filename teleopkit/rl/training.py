@@ -105,8 +105,8 @@ class TrainConfig:
         Agent hyperparameters. Default: the paper's, except learning rates of 1e-3 for actor and
         critics (with 1e-4 the held-out cost after 10 rounds was 25 % above the best static
         gains, with 1e-3 9 % below; same seed and data) and a discount of 0.95 (with 0.99 the
-        validation cost fell 10 % below the best static gains' in rounds 6 to 13 over four
-        seeds, with 0.95 in rounds 7 to 9; ``examples/train_pretrained.py``).
+        validation cost fell 10 % below the best static gains' within 10 rounds for three seeds of
+        six, with 0.95 for five, in rounds 7 to 9; ``examples/train_pretrained.py``).
     """
 
     total_steps: int = 1_600_000
