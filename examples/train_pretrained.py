@@ -40,10 +40,11 @@ discount   seed 0  seed 1  seed 2  seed 3  seed 4  seed 5
 With 0.99 (measured that morning, with the simulator's integrator of then) seed 0's 25 rounds
 ended 16.4 % below the best static gains on the held-out scenarios (best validation at round
 19), with 0.95 20.9 %. Run alone (2026-12-04, the other core idle), the recipe's validation cost
-was first 10 % below the best static gains' at round 7, after 171 s of training (rounds of about
-28 s: 4000 updates and a validation; an hour later the same machine ran them at 35 to 38 s); at
-the faster rate seeds 1, 3 and 5 would take 3.3 minutes, seed 2 3.8, and seed 4 was still 6.5 %
-below after 10 rounds. Rewards are scaled by 0.01 in the critic targets.
+was first 10 % below the best static gains' at round 7, after 171 s of training, and after 182 s
+in a second run (rounds of 28 and 30 s: 4000 updates and a validation; the same machine also ran
+them at 35 to 38 s that hour); at the faster rate seeds 1, 3 and 5 would take 3.3 minutes, seed
+2 3.8, and seed 4 was still 6.5 % below after 10 rounds. Rewards are scaled by 0.01 in the
+critic targets.
 
 Tried on 2026-12-04 and not adopted (discount 0.99 unless said; best static validation cost
 9138): batches of 256 instead of 512 make a round a quarter shorter (17.6 against 23.4 s) but
@@ -53,7 +54,9 @@ starting the actor at the best static gains (``TD3Config.start``, 14 s to find t
 cost at round 1, 25 662 in the first learning round while the critics are still untrained, and
 at best 7.9 % below within 10 rounds; more scenarios per round with the same 4000 updates per
 round (32: first 10 % below at round 11, 296 s; 64: at best 5.1 % below within 8 rounds); soft
-target updates four times faster (``tau = 0.02``; at best 6.5 % below within 12 rounds).
+target updates four times faster (``tau = 0.02``; at best 6.5 % below within 12 rounds); two
+torch threads with the discount of 0.95 (7 rounds in 172 s against 182 s, but the second thread
+changes the sums' rounding and so the run: seed 0 was 6.7 % below at round 7).
 """
 
 from __future__ import annotations
