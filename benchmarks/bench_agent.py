@@ -34,7 +34,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.env import FlexTeleopVectorEnv
 from teleopkit.rl.networks import Critic
 from teleopkit.rl.replay import ReplayBuffer

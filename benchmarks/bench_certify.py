@@ -20,7 +20,7 @@ from certify.methods import get_method
 from certify.solve import LMIProblem
 from certify.system import as_polytope
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import gain_set_system
+from teleopkit.certification.lmi.systems import gain_set_system
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 

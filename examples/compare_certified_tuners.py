@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise, to_markdown

@@ -18,7 +18,7 @@ import os
 
 import matplotlib.pyplot as plt
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.model.params import paper_setup
 from teleopkit.robustness.adversary import SearchSpace
 from teleopkit.robustness.search import search

@@ -15,7 +15,7 @@ import os
 import matplotlib.pyplot as plt
 import numpy as np
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import fixed_gains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, ConstantGains, evaluate, rollout, summarise

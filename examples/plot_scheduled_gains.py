@@ -19,8 +19,8 @@ import os
 import matplotlib.pyplot as plt
 import numpy as np
 
-from teleopkit.certification.analysis import default_certificate
-from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.delays import SwitchingDelay
 from teleopkit.model.params import Operator, paper_setup
 from teleopkit.sim import Scenario, Simulator

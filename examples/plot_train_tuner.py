@@ -30,7 +30,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import torch
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import (

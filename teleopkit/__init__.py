@@ -33,8 +33,8 @@ _EXPORTS = {
     "StepResult": "sim.trajectory",
     "Trajectory": "sim.trajectory",
     "GainBox": "certification.gain_sets",
-    "GainCertificate": "certification.certificate",
-    "certify_gains": "certification.analysis",
+    "GainCertificate": "certification.gain_certificate",
+    "certify_gains": "certification.certifier",
     "SafetyLayer": "safety.layer",
 }
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from teleopkit.certification.analysis import DEFAULT_BOX, default_certificate
+from teleopkit.certification.certifier import DEFAULT_BOX, default_certificate
 from teleopkit.rl.networks import Actor
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer

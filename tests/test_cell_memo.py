@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.certification.cell_memo import CellMemo
-from teleopkit.certification.cover import cover_certificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import LMI_METHOD, NO_LOWER
-from teleopkit.certification.proof import cover_proof, verify_proof
+from teleopkit.certification.lmi.cells import CellMemo
+from teleopkit.certification.lmi.cover import cover_certificate
+from teleopkit.certification.lmi.proof import cover_proof, verify_proof
+from teleopkit.certification.lmi.systems import LMI_METHOD, NO_LOWER
 
 BOUND = 1.45  # between the switching (1.33 s) and the frozen (1.55 s) margin of the box
 WHOLE = GainPolytope.from_box(GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1))

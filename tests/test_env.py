@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import teleopkit
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.env import ENV_ID, FlexTeleopEnv, FlexTeleopVectorEnv, RewardWeights
 from teleopkit.safety import Fallback
 

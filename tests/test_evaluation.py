@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from teleopkit.certification import certify_gains
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
 from teleopkit.model.params import paper_setup

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleopkit.certification.closed_form import nuno_polytope
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.nuno.condition import nuno_polytope
 from teleopkit.model.params import paper_setup
-from teleopkit.robustness.sampling import falsify, sample_polytope
+from teleopkit.robustness.falsification import falsify, sample_polytope
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from teleopkit.certification.closed_form import nuno_delay_margin, nuno_polytope, nuno_slack
 from teleopkit.certification.gain_sets import GainBox, GainPolytope, parse_range
+from teleopkit.certification.nuno.condition import nuno_delay_margin, nuno_polytope, nuno_slack
 from teleopkit.model.params import paper_setup
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))

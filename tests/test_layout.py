@@ -48,7 +48,7 @@ def _imports(path: Path) -> set[str]:
 @pytest.mark.parametrize("layer", LAYERS)
 def test_layers_import_only_the_layers_below(layer):
     above = set(LAYERS[LAYERS.index(layer) + 1:])
-    for path in (ROOT / "teleopkit" / layer).glob("*.py"):
+    for path in (ROOT / "teleopkit" / layer).rglob("*.py"):
         for module in _imports(path):
             parts = module.split(".")
             assert not (parts[0] == "teleopkit" and len(parts) > 1 and parts[1] in above), \

@@ -8,20 +8,20 @@ from scipy.spatial import ConvexHull
 
 from certify import PolytopicDelaySystem, certify_delay, exact_constant_margin, max_delay
 from teleopkit.certification import GainCertificate, certify_gains
-from teleopkit.certification.closed_form import nuno_polytope
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import (
+from teleopkit.certification.lmi.systems import (
     CHANNELS,
     LMI_METHOD,
     gain_set_system,
     lmi_certificate,
     lmi_delay_margin,
 )
+from teleopkit.certification.nuno.condition import nuno_polytope
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import (
     paper_setup,
 )
-from teleopkit.robustness.sampling import falsify
+from teleopkit.robustness.falsification import falsify
 from teleopkit.safety import SafetyLayer
 
 WIDE = GainBox.uniform((1.0, 50.0), (1.0, 150.0), n_joints=1)

@@ -7,9 +7,9 @@ import pytest
 
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import certify_gains, cover
-from teleopkit.certification.cell_memo import CellMemo
-from teleopkit.certification.closed_form import nuno_delay_margin, nuno_joint_margins, nuno_polytope
-from teleopkit.certification.cover import (
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi.cells import CellMemo
+from teleopkit.certification.lmi.cover import (
     CORNERS_AT_ONCE,
     LIMIT_RTOL,
     PROBES,
@@ -23,13 +23,17 @@ from teleopkit.certification.cover import (
     set_certificate,
     vertex_margin,
 )
-from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import (
+from teleopkit.certification.lmi.systems import (
     CHANNELS,
     LMI_METHOD,
     lmi_certificate,
     lmi_delay_margin,
     vertex_certificate,
+)
+from teleopkit.certification.nuno.condition import (
+    nuno_delay_margin,
+    nuno_joint_margins,
+    nuno_polytope,
 )
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import paper_setup

@@ -9,10 +9,10 @@ import pytest
 
 from certify import exact_constant_margin
 from teleopkit.certification import GainCertificate, certify_gains
-from teleopkit.certification.classes import parse_gain_variation
+from teleopkit.certification.gain_classes import parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import gain_set_system
-from teleopkit.certification.lmi_verdict import lmi_assumptions
+from teleopkit.certification.lmi.systems import gain_set_system
+from teleopkit.certification.lmi.verdict import lmi_assumptions
 from teleopkit.cli import main
 from teleopkit.delays.adversarial import PiecewiseDelay, SquareWaveDelay
 from teleopkit.delays.combinators import scale_delay, stack_delays

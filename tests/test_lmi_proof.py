@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from teleopkit.certification import certify_gains
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.cover import cover_certificate
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.proof import cover_proof, verify_proof
+from teleopkit.certification.lmi.cover import cover_certificate
+from teleopkit.certification.lmi.proof import cover_proof, verify_proof
 from teleopkit.model.params import ElasticJoints, plant_record
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)

@@ -10,12 +10,12 @@ import textwrap
 
 import pytest
 
-from teleopkit.certification.parallel import map_solves, workers
+from teleopkit.certification.lmi.workers import map_solves, workers
 
 SCRIPT = """
 import ast
 import os
-from teleopkit.certification.parallel import map_solves
+from teleopkit.certification.lmi.workers import map_solves
 print("ran", os.getpid(), flush=True)
 {guard}print(map_solves(pow, [(2, 3), (3, 2), (5, 1)]))
 """
@@ -57,7 +57,7 @@ def blas_threads(_):
     return max(pool["num_threads"] for pool in threadpool_info()), solver_threads()
 
 if __name__ == "__main__":
-    from teleopkit.certification.parallel import map_solves
+    from teleopkit.certification.lmi.workers import map_solves
     print(map_solves(blas_threads, [(k,) for k in range(4)]))
 """
 
@@ -85,7 +85,7 @@ def test_the_worker_count_is_read_from_the_environment(monkeypatch):
 
 
 STARTER = """
-from teleopkit.certification import parallel
+from teleopkit.certification.lmi import workers as parallel
 if __name__ == "__main__":
     parallel.start_workers()
     print("started", sorted(len(pool._processes) for pool in parallel._POOL.values()))

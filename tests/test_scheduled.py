@@ -14,7 +14,7 @@ from hypothesis.extra.numpy import arrays
 from scipy.integrate import cumulative_simpson
 
 from teleopkit.certification import GainBox, GainCertificate, certify_gains
-from teleopkit.certification.storage import ScheduledStorage, double_integral
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage, double_integral
 from teleopkit.delays import ConstantDelay, SwitchingDelay
 from teleopkit.model.params import Operator, PDGains, paper_setup
 from teleopkit.rl.torch_projection import torch_projection

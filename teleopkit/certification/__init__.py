@@ -1,14 +1,15 @@
 """Certification of remote gain sets: gain sets, gain classes, certificates and their methods.
 
-:func:`~teleopkit.certification.analysis.certify_gains` is the entry point: a
+:func:`~teleopkit.certification.certifier.certify_gains` is the entry point: a
 :class:`~teleopkit.certification.gain_sets.GainBox` and delay bounds in, a
-:class:`~teleopkit.certification.certificate.GainCertificate` out. The methods are the closed
-form of Nuño et al. (:mod:`~teleopkit.certification.closed_form`) and Lyapunov–Krasovskii LMIs
-on the linearisation at rest (:mod:`~teleopkit.certification.lmi` builds the delay systems,
-:mod:`~teleopkit.certification.cover` covers large sets of constant gains with cells,
-:mod:`~teleopkit.certification.lmi_verdict` turns them into a certificate). Gain classes are in
-:mod:`~teleopkit.certification.classes`, delay bounds in :mod:`~teleopkit.certification.bounds`,
-and :mod:`~teleopkit.certification.report` prints certificates as text.
+:class:`~teleopkit.certification.gain_certificate.GainCertificate` out. The methods are the closed
+form of Nuño et al. (:mod:`~teleopkit.certification.nuno.condition`) and Lyapunov–Krasovskii LMIs
+on the linearisation at rest (:mod:`~teleopkit.certification.lmi.systems` builds the delay systems,
+:mod:`~teleopkit.certification.lmi.cover` covers large sets of constant gains with cells,
+:mod:`~teleopkit.certification.lmi.verdict` turns them into a certificate). Gain classes are in
+:mod:`~teleopkit.certification.gain_classes`, delay bounds in
+:mod:`~teleopkit.certification.delay_bounds`, and :mod:`~teleopkit.certification.report` prints
+certificates as text.
 """
 
 from teleopkit._lazy import lazy_namespace
@@ -17,14 +18,14 @@ _EXPORTS = {
     "GainBox": "gain_sets",
     "GainPolytope": "gain_sets",
     "parse_range": "gain_sets",
-    "GainVariation": "classes",
-    "parse_gain_variation": "classes",
-    "GainCertificate": "certificate",
-    "DEFAULT_BOX": "analysis",
-    "best_certificate": "analysis",
-    "certify_gains": "analysis",
-    "default_certificate": "analysis",
-    "methods_for": "analysis",
+    "GainVariation": "gain_classes",
+    "parse_gain_variation": "gain_classes",
+    "GainCertificate": "gain_certificate",
+    "DEFAULT_BOX": "certifier",
+    "best_certificate": "certifier",
+    "certify_gains": "certifier",
+    "default_certificate": "certifier",
+    "methods_for": "certifier",
     "certificate_table": "report",
 }
 

@@ -4,7 +4,7 @@ Two-joint LMI certificates take minutes; asking the same question again should n
 is the plant (its :func:`~teleopkit.model.params.plant_record` fingerprint), the gain box, the
 delay bounds and minimum delays, the method and the gain class; its SHA-256 names a JSON file
 in the cache directory (``$TELEOPKIT_CACHE``, else ``~/.cache/teleopkit``). A file read back
-goes through :meth:`~teleopkit.certification.certificate.GainCertificate.from_json`, which
+goes through :meth:`~teleopkit.certification.gain_certificate.GainCertificate.from_json`, which
 re-checks every proof against the plant, so an edited or stale file is never trusted: it is
 recomputed and overwritten.
 """
@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from teleopkit import __version__
-from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.files import atomic_write
 from teleopkit.model.params import TeleoperatorParams, plant_record

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.gain_certificate import GainCertificate
 
 __all__ = ["CLASSES_PAGE", "certificate_table"]
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.model.params import plant_params
 
 __all__ = ["verify_certificate"]
@@ -24,7 +24,7 @@ def _plain(data: Any) -> Any:
 
 
 def _derived(certificate: GainCertificate) -> GainCertificate:
-    from teleopkit.certification.analysis import certify_gains
+    from teleopkit.certification.certifier import certify_gains
 
     return certify_gains(plant_params(certificate.plant), certificate.box,
                          *certificate.delay_bounds, method="nuno",
@@ -49,7 +49,7 @@ def verify_certificate(certificate: GainCertificate) -> None:
     if certificate.method not in ("nuno", "lmi"):
         raise ValueError(f"unknown certificate method {certificate.method!r}")
     if certificate.method == "lmi":
-        from teleopkit.certification.lmi_verdict import verify_lmi
+        from teleopkit.certification.lmi.verdict import verify_lmi
 
         verify_lmi(certificate)
         return

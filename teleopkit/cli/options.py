@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, Any, TextIO
 import click
 
 if TYPE_CHECKING:
-    from teleopkit.certification.certificate import GainCertificate
-    from teleopkit.certification.classes import GainVariation
+    from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.certification.gain_classes import GainVariation
 
 __all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
            "check_output_dir", "delay_spec", "gain_variation", "gains", "load_certificate",
@@ -84,7 +84,7 @@ def gain_variation(ctx: click.Context | None, param: click.Parameter | None,
     GainVariation
         The class.
     """
-    from teleopkit.certification.classes import parse_gain_variation
+    from teleopkit.certification.gain_classes import parse_gain_variation
 
     try:
         return parse_gain_variation(value)
@@ -204,7 +204,7 @@ def load_certificate(path: Path) -> GainCertificate:
     GainCertificate
         The certificate, verified.
     """
-    from teleopkit.certification.certificate import GainCertificate
+    from teleopkit.certification.gain_certificate import GainCertificate
 
     try:
         text = path.read_text()

@@ -200,7 +200,7 @@ def reproduce_command(out: Path, scenarios: int) -> int:
     cover its schedules: ``covered`` is no) and the tuner trained under a scheduled class with
     the best static gains of that class (covered).
     """
-    from teleopkit.certification.analysis import default_certificate
+    from teleopkit.certification.certifier import default_certificate
     from teleopkit.plots import save_paper_figures
     from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.evaluation import EVAL_SEED, ConstantGains, rollout

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.delays.profiles import FourierDelay
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.safety.layer import SafetyLayer

@@ -39,8 +39,8 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from teleopkit.certification.analysis import default_certificate
-from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.rl.registration import ENV_ID
 from teleopkit.rl.scoring import RewardWeights, observation, score

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 from gymnasium.utils import seeding
 
-from teleopkit.certification.classes import parse_gain_variation
+from teleopkit.certification.gain_classes import parse_gain_variation
 from teleopkit.delays.spec import check_trace_ends, parse_delay
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
 from teleopkit.sim.scenarios import paper_scenarios

@@ -4,7 +4,7 @@ A campaign (:mod:`~teleopkit.robustness.campaign`) crosses or samples the factor
 :mod:`~teleopkit.robustness.factors` as a spec (:mod:`~teleopkit.robustness.spec`), simulates
 chunks of scenarios on Dask (:mod:`~teleopkit.robustness.chunks`) and keeps them as files
 (:mod:`~teleopkit.robustness.store`). Falsification looks for the worst delays and gains inside a
-certified set, by sampling (:mod:`~teleopkit.robustness.sampling`) or by search
+certified set, by sampling (:mod:`~teleopkit.robustness.falsification`) or by search
 (:mod:`~teleopkit.robustness.search`): evidence, never proof.
 """
 
@@ -17,8 +17,8 @@ _EXPORTS = {
     "CampaignSpec": "spec",
     "FACTORS": "factors",
     "Factor": "factors",
-    "falsify": "sampling",
-    "sample_polytope": "sampling",
+    "falsify": "falsification",
+    "sample_polytope": "falsification",
     "SearchResult": "search",
     "SearchSpace": "adversary",
 }

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import GainVariation, parse_gain_variation
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.delays.adversarial import PiecewiseDelay, SquareWaveDelay
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.safety.layer import SafetyLayer

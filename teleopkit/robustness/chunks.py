@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from teleopkit.certification.analysis import default_certificate
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.delays.combinators import scale_delay, stack_delays
 from teleopkit.delays.profiles import DelayProfile, TraceDelay
 from teleopkit.delays.spec import parse_delay

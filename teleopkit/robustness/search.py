@@ -1,6 +1,6 @@
 """Falsification search: the worst delays and gains an adversary can pick inside a certified set.
 
-:mod:`teleopkit.robustness.sampling` samples adversarial scenarios at random; this module
+:mod:`teleopkit.robustness.falsification` samples adversarial scenarios at random; this module
 *optimises* them.
 The adversary picks
 
@@ -53,7 +53,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.model.dynamics import kinetic_energy, remote_energy
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.robustness.adversary import Decision, SearchSpace, decode, gain_schedule

@@ -8,7 +8,7 @@ Every action ``a = [K_r^1..K_r^n, B_r^1..B_r^n]`` that reaches the plant is repl
     \;[\,\text{and } |a - a_{prev}| \le \rho T_s\,],
 
 where ``{a : G a <= h}`` is the polytope of a
-:class:`~teleopkit.certification.certificate.GainCertificate` and the optional rate box comes
+:class:`~teleopkit.certification.gain_certificate.GainCertificate` and the optional rate box comes
 from a rate-bounded certificate (``gain_variation = "rate:R"``). The projection is exact and
 allocation-free (:mod:`teleopkit.safety.polygons`); one sample costs a few microseconds
 including the Python call, a batch runs in one compiled loop. :meth:`SafetyLayer.project_qp`
@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from teleopkit.certification.certificate import GainCertificate
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.safety.polygons import (
     chebyshev_centre,

@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.model.params import plant_params
 from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer, kkt_polish
 from teleopkit.sim.state import StateLayout

@@ -10,7 +10,7 @@ with ``e_track = theta - q_l(t - T_l)`` and ``e_damp = theta - q_r``. The last f
 the velocity energies a Lyapunov–Krasovskii storage needs, integrated exactly along the run:
 ``I(t) = int_0^t v^2`` and its integral ``int_0^t I`` for ``v = q_l'`` and ``v = theta'`` (per
 joint), from which the storage's double integrals follow at any sample time
-(:mod:`teleopkit.certification.storage`). The two delay channels carry
+(:mod:`teleopkit.certification.nuno.lyapunov`). The two delay channels carry
 ``(q_l, q_l')`` forward and ``(theta, theta')`` backward. :class:`StateLayout` names the blocks so
 that the simulator, the environments, campaigns and falsification never count offsets by hand
 (the compiled kernel, which needs constant offsets, is tested against the numpy integrator that

@@ -3,7 +3,7 @@
 The remote stiffness has the local gains' shape, ``K_r = kappa S`` (``S = K_l / K_l^1``); the
 damping lies in the cone ``B_r^i >= rho_i K_r^i`` of the closed form; ``kappa`` rises freely and
 falls within a log budget ``L`` per episode (``scheduled:L``) or as an energy tank allows
-(``tank``). The proof is the storage of :mod:`teleopkit.certification.storage`:
+(``tank``). The proof is the storage of :mod:`teleopkit.certification.nuno.lyapunov`:
 ``V(t) <= exp(L) V(0)``, or ``V(t) + tank(t) <= V(0) + T0``. The certified set is the closed-form
 polytope of the box restricted to the common shape; the run-time part of the class (budget or
 tank) is enforced by the safety layer at every control step.
@@ -15,11 +15,11 @@ from dataclasses import asdict
 
 import numpy as np
 
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import GainVariation
-from teleopkit.certification.closed_form import nuno_joint_margins, nuno_polytope
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.storage import ScheduledStorage
+from teleopkit.certification.nuno.condition import nuno_joint_margins, nuno_polytope
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
 __all__ = ["TANK_REFILL", "certify_scheduled", "kappa_range", "shape_rows"]
@@ -122,11 +122,11 @@ def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, t
         i = int(np.argmin(in_cone))
         violation = (f"joint {i + 1} at kappa = {box_high:g}, B_r = {box.lower[n + i]:g}: "
                      f"below the cone B_r >= {storage.cone[i]:g} K_r")
-    guarantee = (f"guarantee: the storage V of teleopkit.certification.storage obeys V(t) <= "
+    guarantee = (f"guarantee: the storage V of teleopkit.certification.nuno.lyapunov obeys V(t) <= "
                  f"exp({variation.value:g}) V(0)" if variation.kind == "scheduled" else
                  "guarantee: V(t) + tank(t) <= V(0) + T0 for the storage V of "
-                 "teleopkit.certification.storage (falls of kappa paid from the measured remote "
-                 "energy)")
+                 "teleopkit.certification.nuno.lyapunov (falls of kappa paid from the measured "
+                 "remote energy)")
     details = {"storage": asdict(storage), "kappa_range": [low, high],
                "refill": TANK_REFILL if variation.kind == "tank" else None}
     return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),

@@ -1,6 +1,6 @@
 """Cells already decided for one question, reused by the covers of nested gain sets.
 
-:func:`~teleopkit.certification.lmi_verdict.certify_lmi` covers several sets for the same delay
+:func:`~teleopkit.certification.lmi.verdict.certify_lmi` covers several sets for the same delay
 bounds: the whole box, then members of a family of polytopes cut from it, nested in one another.
 Their covers split the same bounding box the same way, so the same boxes come up again,
 clipping nested sets. Two facts make many of those cells free:
@@ -25,7 +25,7 @@ import numpy as np
 
 from certify import Certificate
 from teleopkit.certification.gain_sets import GainPolytope
-from teleopkit.certification.lmi import gain_set_system
+from teleopkit.certification.lmi.systems import gain_set_system
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["CellMemo"]

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from teleopkit.certification.bounds import check_delay_bounds
+from teleopkit.certification.delay_bounds import check_delay_bounds
 from teleopkit.delays.history import hermite
 from teleopkit.model.dynamics import kinetic_energy, remote_energy
 from teleopkit.model.params import TeleoperatorParams, Wall

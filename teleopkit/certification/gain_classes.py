@@ -17,7 +17,8 @@ class              what the remote gains may do
 =================  ================================================================================
 
 The two last classes are proven on the nonlinear teleoperator by one Lyapunov–Krasovskii storage
-(:mod:`teleopkit.certification.storage`); the safety layer enforces them at every control step.
+(:mod:`teleopkit.certification.nuno.lyapunov`); the safety layer enforces them at every control
+step.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from teleopkit.certification.classes import GainVariation, parse_gain_variation
+from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import TeleoperatorParams, plant_mismatch
 
@@ -30,7 +30,7 @@ class GainCertificate:
     method : str
         Certification method (``"nuno"`` or ``"lmi"``).
     gain_variation : str
-        The gain class (:mod:`teleopkit.certification.classes`), for example ``"frozen"`` or
+        The gain class (:mod:`teleopkit.certification.gain_classes`), for example ``"frozen"`` or
         ``"scheduled:1"``.
     delay_bounds : tuple of float
         ``(T_l*, T_r*)``.

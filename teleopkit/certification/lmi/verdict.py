@@ -1,7 +1,7 @@
 """The LMI answer to "is this gain box stable?": verdict, certified polytope and delay margin.
 
-:func:`certify_lmi` certifies a box with the LMIs of :mod:`teleopkit.certification.lmi` (one
-functional, or cells of :mod:`teleopkit.certification.cover` for constant gains of large sets).
+:func:`certify_lmi` certifies a box with the LMIs of :mod:`teleopkit.certification.lmi.systems` (one
+functional, or cells of :mod:`teleopkit.certification.lmi.cover` for constant gains of large sets).
 When the box is not certified it names a failing vertex and offers the largest certified member
 of the family of boxes cut by the closed form at ``s T*``; the delay margin of constant gains of
 large sets is searched by covers between a lower bound and the limiting vertex's own margin.
@@ -12,28 +12,28 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from teleopkit.certification.cell_memo import CellMemo
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import GainVariation
-from teleopkit.certification.classes import parse_gain_variation as parse_variation
-from teleopkit.certification.closed_form import nuno_polytope, weakest_first
-from teleopkit.certification.cover import (
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.gain_classes import GainVariation
+from teleopkit.certification.gain_classes import parse_gain_variation as parse_variation
+from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi.cells import CellMemo
+from teleopkit.certification.lmi.cover import (
     LIMIT_RTOL,
     Cover,
     cover_margin,
     limiting_vertex,
     set_certificate,
 )
-from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import (
+from teleopkit.certification.lmi.proof import certificate_proof, cover_proof, verify_proof
+from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
     enumerated,
     lmi_delay_margin,
     vertex_certificate,
 )
-from teleopkit.certification.parallel import start_workers
-from teleopkit.certification.proof import certificate_proof, cover_proof, verify_proof
+from teleopkit.certification.lmi.workers import start_workers
+from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
 __all__ = ["MARGIN_BUDGET", "MARGIN_FLOOR", "certify_lmi", "cut_polytope", "lmi_assumptions",
@@ -240,9 +240,9 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     The whole set's margin with one functional is a lower bound for constant gains beyond
     :func:`enumerated`, and so is ``known`` (a common bound already certified). The limiting
     vertex's own margin is an upper limit. A set certified at the requested bounds is searched
-    between the two by covers (:func:`~teleopkit.certification.cover.cover_margin`, with a budget of
-    :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the limiting
-    vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
+    between the two by covers (:func:`~teleopkit.certification.lmi.cover.cover_margin`, with a
+    budget of :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the
+    limiting vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
     """
     def single(h_max: float = 100.0) -> tuple[float, dict[str, Any] | None]:
         if h_max <= max(delay_lower) + MARGIN_FLOOR:
@@ -275,7 +275,7 @@ def verify_lmi(certificate: GainCertificate) -> None:
 
     The offered polytope must be the box (when the box is certified) or the member of
     :func:`cut_polytope` at the recorded scale; a certified polytope needs a proof that holds
-    (:func:`~teleopkit.certification.proof.verify_proof`), and so does a positive delay margin.
+    (:func:`~teleopkit.certification.lmi.proof.verify_proof`), and so does a positive delay margin.
 
     Parameters
     ----------

@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from certify import Certificate
-from teleopkit.certification.cover import Cover
 from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
-from teleopkit.certification.lmi import NO_LOWER, gain_set_system
+from teleopkit.certification.lmi.cover import Cover
+from teleopkit.certification.lmi.systems import NO_LOWER, gain_set_system
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["certificate_proof", "cover_proof", "verify_proof"]
@@ -39,7 +39,7 @@ def cover_proof(cover: Cover, bounds: Sequence[float],
     Parameters
     ----------
     cover : Cover
-        A certified cover (:func:`~teleopkit.certification.cover.set_certificate`).
+        A certified cover (:func:`~teleopkit.certification.lmi.cover.set_certificate`).
     bounds : sequence of float
         The delay bounds ``(T_l*, T_r*)`` it was certified for.
     delay_lower : sequence of float

@@ -20,8 +20,8 @@ The gains enter in one of two ways:
   is a special case of arbitrary switching, so ``rate:R`` is certified the same way (sound,
   not rate-specific).
 
-For constant gains of a large set, :func:`teleopkit.certification.cover.cover_certificate` is less
-conservative than one multiplier certificate: it covers the set with cells certified here.
+For constant gains of a large set, :func:`teleopkit.certification.lmi.cover.cover_certificate` is
+less conservative than one multiplier certificate: it covers the set with cells certified here.
 """
 
 from __future__ import annotations

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from teleopkit.certification.bounds import check_delay_bounds
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import GainVariation
+from teleopkit.certification.delay_bounds import check_delay_bounds
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import TeleoperatorParams, plant_record
 

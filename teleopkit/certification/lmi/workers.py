@@ -76,7 +76,7 @@ def _share_cores(threads: int) -> None:
 def _pool(count: int) -> Executor:
     if count not in _POOL:
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["teleopkit.certification.lmi"])
+        context.set_forkserver_preload(["teleopkit.certification.lmi.systems"])
         threads = max(1, (os.cpu_count() or 1) // count)
         _POOL[count] = ProcessPoolExecutor(count, mp_context=context, initializer=_share_cores,
                                            initargs=(threads,))

@@ -1,26 +1,26 @@
 """Certify remote gain ranges of the teleoperator for given delay bounds.
 
 :func:`certify_gains` answers "is every gain in this box stable for delays up to ``T_l*, T_r*``?"
-with a :class:`~teleopkit.certification.certificate.GainCertificate`: the verdict, the admissible
-polytope inside the box (what the safety layer projects onto), the delay margin of the box and
-the assumptions the verdict rests on.
+with a :class:`~teleopkit.certification.gain_certificate.GainCertificate`: the verdict, the
+admissible polytope inside the box (what the safety layer projects onto), the delay margin of the
+box and the assumptions the verdict rests on.
 
-Methods: ``"nuno"``, the closed form of :mod:`teleopkit.certification.closed_form` (nonlinear
+Methods: ``"nuno"``, the closed form of :mod:`teleopkit.certification.nuno.condition` (nonlinear
 model, frozen gains, instant); ``"lmi"``, the Lyapunov–Krasovskii LMIs of :mod:`certify` on the
-linearisation at rest (:mod:`teleopkit.certification.lmi_verdict`; seconds for one joint, minutes
-for two); ``"all"``, both. Gain classes: :mod:`teleopkit.certification.classes`.
+linearisation at rest (:mod:`teleopkit.certification.lmi.verdict`; seconds for one joint, minutes
+for two); ``"all"``, both. Gain classes: :mod:`teleopkit.certification.gain_classes`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-from teleopkit.certification.bounds import check_delay_bounds, check_delay_floors
-from teleopkit.certification.certificate import GainCertificate
-from teleopkit.certification.classes import GainVariation, parse_gain_variation
-from teleopkit.certification.closed_form import certify_closed_form
+from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay_floors
+from teleopkit.certification.gain_certificate import GainCertificate
+from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.scheduled import certify_scheduled
+from teleopkit.certification.nuno.condition import certify_closed_form
+from teleopkit.certification.nuno.scheduled import certify_scheduled
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
 __all__ = [
@@ -43,7 +43,7 @@ Certifier = Callable[[TeleoperatorParams, GainBox, float, float, GainVariation,
 
 
 def _lmi() -> Certifier:
-    from teleopkit.certification.lmi_verdict import certify_lmi  # cvxpy: only when asked for
+    from teleopkit.certification.lmi.verdict import certify_lmi  # cvxpy: only when asked for
 
     return certify_lmi
 
@@ -125,7 +125,7 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         returns the best certificate (:func:`best_certificate`).
     variation : GainVariation or str
         Gain class: ``"frozen"``, ``"switching"``, ``"rate:R"``, ``"scheduled:L"`` or
-        ``"tank[:T0]"`` (:mod:`teleopkit.certification.classes`).
+        ``"tank[:T0]"`` (:mod:`teleopkit.certification.gain_classes`).
     tl_min, tr_min : float
         Minimum delays in seconds (a network's latency floor), in ``[0, T_i*)``. The LMIs use
         them (a larger certified set); the closed form covers delays from 0 whatever they are.

@@ -2,9 +2,9 @@
 
 For frozen (constant) gains the least conservative LMI lets the functional depend on the gains,
 which needs every gain vertex as a system: ``4^n`` of them, too many for two joints (see
-:mod:`teleopkit.certification.lmi`). A set of constant gains is certified just as well by cells that
-cover it, each certified on its own. Here each cell is certified for gains *switching* inside
-it (one functional, gains as a multiplier uncertainty: a few seconds per cell), which is
+:mod:`teleopkit.certification.lmi.systems`). A set of constant gains is certified just as well by
+cells that cover it, each certified on its own. Here each cell is certified for gains
+*switching* inside it (one functional, gains as a multiplier uncertainty: a few seconds per cell), which is
 conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
@@ -13,7 +13,7 @@ level between is skipped: its cells are nearly as wide and mostly fail too). A l
 than :data:`PROBES` cells first solves its most promising ones (largest closed-form margin at
 the weakest vertex); if one of them fails, the whole level is split without solving the rest,
 which would mostly fail too. The cells of one level of the split are solved together on the
-local cores (:mod:`~teleopkit.certification.parallel`), and a cell's LMI is retried in balanced
+local cores (:mod:`~teleopkit.certification.lmi.workers`), and a cell's LMI is retried in balanced
 coordinates only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.
 
 No LMI certifies a cell whose corner it cannot certify alone, and a corner alone is a smaller
@@ -38,17 +38,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from certify import Certificate
-from teleopkit.certification.cell_memo import CellMemo
-from teleopkit.certification.closed_form import nuno_joint_margins, weakest_first
 from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
-from teleopkit.certification.lmi import (
+from teleopkit.certification.lmi.cells import CellMemo
+from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
     enumerated,
     lmi_certificate,
     vertex_certificate,
 )
-from teleopkit.certification.parallel import map_solves, workers
+from teleopkit.certification.lmi.workers import map_solves, workers
+from teleopkit.certification.nuno.condition import nuno_joint_margins, weakest_first
 from teleopkit.model.params import TeleoperatorParams
 
 __all__ = ["CELL_BUDGET", "CELL_RETRY", "CORNERS_AT_ONCE", "LIMIT_RTOL", "MIN_RATIO", "PROBES",
@@ -189,7 +189,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         Lower delay bounds ``(T_l_min, T_r_min)``.
     memo : CellMemo, optional
         Verdicts of earlier covers of the same question, used and extended
-        (:mod:`~teleopkit.certification.cell_memo`); by default a new one.
+        (:mod:`~teleopkit.certification.lmi.cells`); by default a new one.
     root : tuple of ndarray, optional
         The box ``(lower, upper)`` to split, containing the polytope; by default its bounding
         box. Covers of nested sets that split the same root meet the same boxes, which is what
@@ -422,7 +422,7 @@ def limiting_vertex(params: TeleoperatorParams, polytope: GainPolytope,
                     ) -> tuple[tuple[float, ...], float]:
     """The gain vertex with the smallest closed-form margin and its frozen LMI margin alone.
 
-    Ties go as in :func:`~teleopkit.certification.closed_form.weakest_first`.
+    Ties go as in :func:`~teleopkit.certification.nuno.condition.weakest_first`.
 
     The LMI margin of any one gain bounds the margin of every set that contains it, so this is
     an upper limit of the set's constant-gain margin (:func:`vertex_margin`: about 35 s for two
@@ -467,7 +467,7 @@ def vertex_margin(params: TeleoperatorParams, action: np.ndarray, method: str = 
     """Largest common delay bound ``T*`` certified for one constant gain alone, on all cores.
 
     A section search: each round solves one bound per worker
-    (:func:`~teleopkit.certification.parallel.map_solves`), doubling from ``guess`` until a
+    (:func:`~teleopkit.certification.lmi.workers.map_solves`), doubling from ``guess`` until a
     bound fails, then at evenly spaced bounds inside the bracket, until the bracket is within
     ``rtol`` (with two workers it narrows three-fold per round, where a bisection halves it per
     solve).
