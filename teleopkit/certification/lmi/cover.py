@@ -4,8 +4,8 @@ For frozen (constant) gains the least conservative LMI lets the functional depen
 which needs every gain vertex as a system: ``4^n`` of them, too many for two joints (see
 :mod:`teleopkit.certification.lmi.systems`). A set of constant gains is certified just as well by
 cells that cover it, each certified on its own. Here each cell is certified for gains
-*switching* inside it (one functional, gains as a multiplier uncertainty: a few seconds per cell), which is
-conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
+*switching* inside it (one functional, gains as a multiplier uncertainty: a few seconds per
+cell), which is conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
 fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
 mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
 spent. After a level in which no cell is certified, the failed cells are split twice (the

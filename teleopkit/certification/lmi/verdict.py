@@ -242,7 +242,8 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     vertex's own margin is an upper limit. A set certified at the requested bounds is searched
     between the two by covers (:func:`~teleopkit.certification.lmi.cover.cover_margin`, with a
     budget of :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the
-    limiting vertex would be tiny (more than 20 minutes on the paper's whole box), reports the bounds.
+    limiting vertex would be tiny (more than 20 minutes on the paper's whole box), reports the
+    bounds.
     """
     def single(h_max: float = 100.0) -> tuple[float, dict[str, Any] | None]:
         if h_max <= max(delay_lower) + MARGIN_FLOOR:
