@@ -15,7 +15,7 @@ import os
 import matplotlib.pyplot as plt
 import numpy as np
 
-from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.certification import certify_gains, load_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.report import certificate_table
 from teleopkit.model.params import paper_setup
@@ -61,9 +61,11 @@ print(wide_cert.violation)
 print(wide_cert.polytope.joint_vertices(0).round(3))
 
 # %%
-# Certificates serialise to JSON (``teleopkit certify --json``) and back:
+# Certificates serialise to JSON (``teleopkit certify --json``) and back. Reading one for use
+# goes through ``load_certificate``, which parses it and re-derives what it claims (an edited
+# file is refused in one line):
 text = wide_cert.to_json(indent=None)
-again = GainCertificate.from_json(text)
+again = load_certificate(text)
 print(text[:300], "...")
 print(again.delay_margin == wide_cert.delay_margin)
 

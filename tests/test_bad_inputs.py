@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.certification import certify_gains, load_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
 from teleopkit.delays import PiecewiseDelay, TraceDelay, parse_delay
@@ -268,14 +268,14 @@ def nuno_space(**options: object) -> SearchSpace:
 
 API_CASES = [
     # corrupted certificates
-    (lambda: GainCertificate.from_json("not json"),
+    (lambda: load_certificate("not json"),
      "malformed gain certificate: Expecting value: line 1 column 1 (char 0)"),
-    (lambda: GainCertificate.from_json("{}"), "malformed gain certificate: 'box'"),
-    (lambda: GainCertificate.from_json(with_changes(polytope__h=[1.0, 2.0])),
+    (lambda: load_certificate("{}"), "malformed gain certificate: 'box'"),
+    (lambda: load_certificate(with_changes(polytope__h=[1.0, 2.0])),
      "malformed gain certificate: polytope has 10 normals, 2 offsets and 10 labels"),
-    (lambda: GainCertificate.from_json(with_changes(box__kr=[[5.0, 1.0], [1.0, 5.0]])),
+    (lambda: load_certificate(with_changes(box__kr=[[5.0, 1.0], [1.0, 5.0]])),
      "malformed gain certificate: K_r range is inverted (5.0 > 1.0)"),
-    (lambda: GainCertificate.from_json(with_changes(polytope__G="oops")),
+    (lambda: load_certificate(with_changes(polytope__G="oops")),
      "malformed gain certificate: could not convert string to float: 'oops'"),
     # delays
     (lambda: parse_delay("sine:1:2"),
@@ -357,11 +357,11 @@ API_CASES = [
                            0.5).check(paper_setup(), 0.5, 0.8),
      "the backward delay can reach 0.8 s, beyond the certificate's bound 0.5 s (delays in "
      "seconds: a value in milliseconds needs the ms unit)"),
-    (lambda: GainCertificate.from_json(with_changes(plant__local_gains={
+    (lambda: load_certificate(with_changes(plant__local_gains={
         "stiffness": [1.0, 1.0], "damping": [10.0, 10.0]})),
      "the certificate's gain polytope is not the one its plant, box and delay bounds give "
      "(edited?)"),
-    (lambda: GainCertificate.from_json(with_changes(plant={})),
+    (lambda: load_certificate(with_changes(plant={})),
      "the certificate names no plant; certify again with this teleopkit"),
     # falsification search
     (lambda: nuno_space(segments=0), "segments must be an integer >= 1, got 0"),

@@ -8,7 +8,7 @@ import pytest
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.cells import CellMemo
 from teleopkit.certification.lmi.cover import cover_certificate
-from teleopkit.certification.lmi.proof import cover_proof, verify_proof
+from teleopkit.certification.lmi.proof import check_proof, cover_proof
 from teleopkit.certification.lmi.systems import LMI_METHOD, NO_LOWER
 
 BOUND = 1.45  # between the switching (1.33 s) and the frozen (1.55 s) margin of the box
@@ -24,7 +24,7 @@ def _memo(params) -> CellMemo:
 def _sound(params, polytope, cover) -> None:
     """Every cell's certificate holds, and the cover's proof checks from the plant alone."""
     assert cover.certified and all(cert.verify() for cert in cover.certificates)
-    verify_proof(params, polytope, cover_proof(cover, (BOUND, BOUND)), (BOUND, BOUND),
+    check_proof(params, polytope, cover_proof(cover, (BOUND, BOUND)), (BOUND, BOUND),
                  ("switching",))
 
 
@@ -84,6 +84,6 @@ def test_a_proof_s_root_must_contain_the_set(one_joint):
     assert proof["root"] == [ROOT[0].tolist(), ROOT[1].tolist()]
     shrunk = {**proof, "root": [[6.0, 30.0], [10.0, 60.0]]}  # misses K_r in [5.5, 6]
     with pytest.raises(ValueError, match="root box"):
-        verify_proof(one_joint, STRIP, shrunk, (BOUND, BOUND), ("switching",))
+        check_proof(one_joint, STRIP, shrunk, (BOUND, BOUND), ("switching",))
     with pytest.raises(ValueError, match="outside the root box"):
         cover_certificate(one_joint, WHOLE, BOUND, BOUND, root=(ROOT[0] + 1.0, ROOT[1]))

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from teleopkit.certification import load_certificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope, parse_range
 from teleopkit.certification.nuno.condition import nuno_delay_margin, nuno_polytope, nuno_slack
 from teleopkit.model.params import paper_setup
@@ -79,13 +80,13 @@ def test_bad_delay_bounds(bounds):
 
 
 def test_certificate_json_round_trip_and_malformed():
-    from teleopkit.certification import GainCertificate, certify_gains
+    from teleopkit.certification import certify_gains
 
     cert = certify_gains(paper_setup(), BOX, 0.05, 0.05, method="nuno")
     assert cert.certified
-    again = GainCertificate.from_json(cert.to_json())
+    again = load_certificate(cert.to_json())
     assert again.to_dict() == cert.to_dict()
     with pytest.raises(ValueError, match="malformed gain certificate"):
-        GainCertificate.from_json('{"certified": true}')
+        load_certificate('{"certified": true}')
     with pytest.raises(ValueError, match="malformed gain certificate"):
-        GainCertificate.from_json("not json")
+        load_certificate("not json")

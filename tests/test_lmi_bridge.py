@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from certify import PolytopicDelaySystem, certify_delay, exact_constant_margin, max_delay
-from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.certification import GainCertificate, certify_gains, load_certificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.systems import (
     CHANNELS,
@@ -95,7 +95,7 @@ def test_switching_is_harder_than_frozen_and_rate_is_certified_as_switching(one_
 def test_all_returns_the_best_method_and_round_trips(one_joint):
     best = certify_gains(one_joint, NARROW, 1.0, 1.0, method="all")
     assert best.method == "lmi"
-    again = GainCertificate.from_json(best.to_json())
+    again = load_certificate(best.to_json())
     assert again.polytope_certified and again.delay_margin == best.delay_margin
 
 

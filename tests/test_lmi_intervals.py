@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from certify import exact_constant_margin
-from teleopkit.certification import GainCertificate, certify_gains
+from teleopkit.certification import GainCertificate, certify_gains, load_certificate
 from teleopkit.certification.gain_classes import parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.systems import gain_set_system
@@ -57,17 +57,17 @@ def test_the_closed_form_covers_delays_from_zero_whatever_the_floor(one_joint):
 
 
 def test_an_interval_certificate_round_trips_and_refuses_edits(with_floor):
-    again = GainCertificate.from_json(with_floor.to_json())
+    again = load_certificate(with_floor.to_json())
     assert again.delay_lower == with_floor.delay_lower
     data = json.loads(with_floor.to_json())
     from_zero = {**data, "delay_lower": [0.0, 0.0]}  # claims delays from 0: not what was proven
     with pytest.raises(ValueError, match="assumptions"):
-        GainCertificate.from_json(json.dumps(from_zero))
+        load_certificate(json.dumps(from_zero))
     from_zero["assumptions"] = list(lmi_assumptions(parse_gain_variation("frozen")))
     with pytest.raises(ValueError, match="proof is for delays from"):
-        GainCertificate.from_json(json.dumps(from_zero))
+        load_certificate(json.dumps(from_zero))
     with pytest.raises(ValueError, match="delay_lower"):
-        GainCertificate.from_json(json.dumps({**data, "delay_lower": [-1.0, 0.0]}))
+        load_certificate(json.dumps({**data, "delay_lower": [-1.0, 0.0]}))
 
 
 def test_an_interval_certificate_is_refused_for_profiles_that_fall_below_it(one_joint,
@@ -140,4 +140,4 @@ def test_the_cache_reuses_a_verified_certificate_and_recomputes_an_edited_one(tm
     path.write_text(json.dumps(data))
     _, reused = cached(key, compute, tmp_path)
     assert not reused and len(calls) == 2
-    assert GainCertificate.from_json(path.read_text()).to_json() == with_floor.to_json()
+    assert load_certificate(path.read_text()).to_json() == with_floor.to_json()

@@ -9,11 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from teleopkit.certification import certify_gains
+from teleopkit.certification import certify_gains, load_certificate
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.cover import cover_certificate
-from teleopkit.certification.lmi.proof import cover_proof, verify_proof
+from teleopkit.certification.lmi.proof import check_proof, cover_proof
 from teleopkit.model.params import ElasticJoints, plant_record
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
@@ -43,7 +43,7 @@ def _edited(cert: GainCertificate, edit) -> str:
 
 def test_a_certificate_read_back_is_verified(frozen):
     assert frozen.certified and frozen.details["proof"]["variation"] == "frozen"
-    back = GainCertificate.from_json(frozen.to_json())
+    back = load_certificate(frozen.to_json())
     assert back.polytope.same_as(frozen.polytope) and back.delay_margin == frozen.delay_margin
 
 
@@ -88,7 +88,7 @@ def _switching(data):
 ])
 def test_a_tampered_certificate_is_refused(frozen, edit, message):
     with pytest.raises(ValueError, match=message):
-        GainCertificate.from_json(_edited(frozen, edit))
+        load_certificate(_edited(frozen, edit))
 
 
 def test_a_certificate_moved_to_another_plant_is_refused(frozen, one_joint):
@@ -98,14 +98,14 @@ def test_a_certificate_moved_to_another_plant_is_refused(frozen, one_joint):
         data["plant"] = plant_record(softer)
 
     with pytest.raises(ValueError, match="LMI solution of cell 0"):
-        GainCertificate.from_json(_edited(frozen, move))
+        load_certificate(_edited(frozen, move))
 
 
 def test_a_cover_proof_verifies(one_joint, proof):
-    verify_proof(one_joint, SET, proof, (1.45, 1.45), BOTH)
-    verify_proof(one_joint, SET, proof, (1.0, 1.2), BOTH)  # smaller bounds are covered
+    check_proof(one_joint, SET, proof, (1.45, 1.45), BOTH)
+    check_proof(one_joint, SET, proof, (1.0, 1.2), BOTH)  # smaller bounds are covered
     with pytest.raises(ValueError, match="do not cover"):
-        verify_proof(one_joint, SET, proof, (1.5, 1.45), BOTH)
+        check_proof(one_joint, SET, proof, (1.5, 1.45), BOTH)
 
 
 def _tampered(proof, edit):
@@ -143,10 +143,10 @@ def _swap_solutions(p):
 ])
 def test_a_tampered_cover_is_refused(one_joint, proof, edit, message):
     with pytest.raises(ValueError, match=message):
-        verify_proof(one_joint, SET, _tampered(proof, edit), (1.45, 1.45), BOTH)
+        check_proof(one_joint, SET, _tampered(proof, edit), (1.45, 1.45), BOTH)
 
 
 def test_a_switching_claim_needs_switching_cells(one_joint, proof, frozen):
-    verify_proof(one_joint, SET, proof, (1.45, 1.45), ("switching",))
+    check_proof(one_joint, SET, proof, (1.45, 1.45), ("switching",))
     with pytest.raises(ValueError, match="for frozen gains"):
-        verify_proof(one_joint, SET, frozen.details["proof"], (1.0, 1.0), ("switching",))
+        check_proof(one_joint, SET, frozen.details["proof"], (1.0, 1.0), ("switching",))

@@ -27,6 +27,9 @@ _EXPORTS = {
     "default_certificate": "certifier",
     "methods_for": "certifier",
     "certificate_table": "report",
+    "check_certificate": "verification",
+    "load_certificate": "verification",
+    "verify_certificate": "verification",
 }
 
 __all__ = sorted(_EXPORTS)

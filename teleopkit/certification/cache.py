@@ -4,8 +4,8 @@ Two-joint LMI certificates take minutes; asking the same question again should n
 is the plant (its :func:`~teleopkit.model.params.plant_record` fingerprint), the gain box, the
 delay bounds and minimum delays, the method and the gain class; its SHA-256 names a JSON file
 in the cache directory (``$TELEOPKIT_CACHE``, else ``~/.cache/teleopkit``). A file read back
-goes through :meth:`~teleopkit.certification.gain_certificate.GainCertificate.from_json`, which
-re-checks every proof against the plant, so an edited or stale file is never trusted: it is
+goes through :func:`~teleopkit.certification.verification.load_certificate`, which re-checks
+every proof against the plant, so an edited or stale file is never trusted: it is
 recomputed and overwritten.
 """
 
@@ -20,6 +20,7 @@ from pathlib import Path
 from teleopkit import __version__
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox
+from teleopkit.certification.verification import load_certificate
 from teleopkit.files import atomic_write
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
@@ -86,7 +87,7 @@ def cached(key: str, compute: Callable[[], GainCertificate],
     """
     path = (directory if directory is not None else cache_directory()) / f"{key}.json"
     try:
-        return GainCertificate.from_json(path.read_text()), True
+        return load_certificate(path.read_text()), True
     except (OSError, ValueError):  # absent, unreadable, edited or stale: recompute
         pass
     certificate = compute()

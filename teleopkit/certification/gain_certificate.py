@@ -1,8 +1,10 @@
 """The gain certificate: a verdict on a box of remote gains, as an object and as JSON.
 
-A certificate names what it certifies: the plant (:func:`~teleopkit.model.params.plant_record`,
-with a fingerprint), the delay bounds, the gain class and the box. :meth:`GainCertificate.check`
-refuses it, in one line, for another plant or for delays that can exceed its bounds.
+A certificate is a value: it names what it certifies (the plant, with a fingerprint, from
+:func:`~teleopkit.model.params.plant_record`; the delay bounds; the gain class; the box) and
+what it claims. :meth:`GainCertificate.check` refuses it, in one line, for another plant or for
+delays that can exceed its bounds. Whether the claim holds is re-checked above it, by
+:mod:`teleopkit.certification.verification`.
 """
 
 from __future__ import annotations
@@ -110,18 +112,6 @@ class GainCertificate:
                 raise ValueError(f"the {name} delay can fall to {floor:.6g} s, below the "
                                  f"certificate's minimum delay {certified:g} s")
 
-    def verify(self) -> None:
-        """Re-check the certificate (:func:`.verification.verify_certificate`).
-
-        Raises
-        ------
-        ValueError
-            One line naming what does not check out.
-        """
-        from teleopkit.certification.verification import verify_certificate
-
-        verify_certificate(self)
-
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (what ``teleopkit certify --json`` prints)."""
         n = self.box.n_joints
@@ -159,46 +149,44 @@ class GainCertificate:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
-    def from_json(cls, text: str, verify: bool = True) -> GainCertificate:
-        """Inverse of :meth:`to_json`, re-checked: nothing unverified reaches the plant.
+    def from_json(cls, text: str) -> GainCertificate:
+        """Inverse of :meth:`to_json`: parse, nothing more.
+
+        A parsed certificate is a claim. Reading one for use goes through
+        :func:`~teleopkit.certification.verification.load_certificate`, which parses and
+        re-checks it.
 
         Parameters
         ----------
         text : str
             JSON text as :meth:`to_json` writes it.
-        verify : bool
-            Re-check the certificate (:meth:`verify`); only for data already verified.
 
         Returns
         -------
         GainCertificate
-            The certificate.
+            The certificate, not re-checked.
 
         Raises
         ------
         ValueError
-            One line: malformed text, or a certificate that does not check out (edited, or
-            for a plant its record does not match).
+            One line naming what is malformed.
         """
         try:
             data = json.loads(text)
             ranges = data["box"]
             box = GainBox(tuple(map(tuple, ranges["kr"])), tuple(map(tuple, ranges["br"])))
             margin = data["delay_margin"]
-            certificate = cls(bool(data["certified"]), str(data["method"]),
-                              str(data["gain_variation"]),
-                              tuple(data["delay_bounds"]),
-                              math.inf if margin == "inf" else float(margin), box,
-                              GainPolytope.from_dict(data["polytope"]),
-                              bool(data["polytope_certified"]), tuple(data["assumptions"]),
-                              data["violation"], dict(data["details"]),
-                              dict(data.get("plant", {})),
-                              _delay_lower(data.get("delay_lower", (0.0, 0.0))))
+            return cls(bool(data["certified"]), str(data["method"]),
+                       str(data["gain_variation"]),
+                       tuple(data["delay_bounds"]),
+                       math.inf if margin == "inf" else float(margin), box,
+                       GainPolytope.from_dict(data["polytope"]),
+                       bool(data["polytope_certified"]), tuple(data["assumptions"]),
+                       data["violation"], dict(data["details"]),
+                       dict(data.get("plant", {})),
+                       _delay_lower(data.get("delay_lower", (0.0, 0.0))))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
-        if verify:
-            certificate.verify()
-        return certificate
 
 
 def _delay_lower(values: Any) -> tuple[float, float]:

@@ -25,8 +25,8 @@ if TYPE_CHECKING:
     from teleopkit.certification.gain_classes import GainVariation
 
 __all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
-           "check_output_dir", "delay_spec", "gain_variation", "gains", "load_certificate",
-           "progress", "single_thread"]
+           "check_output_dir", "delay_spec", "gain_variation", "gains",
+           "progress", "read_certificate", "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
@@ -191,7 +191,7 @@ def check_disk(path: Path, size: int, option: str) -> None:
                            f"{free / 1e9:.3g} GB free on its disk")
 
 
-def load_certificate(path: Path) -> GainCertificate:
+def read_certificate(path: Path) -> GainCertificate:
     """Read a certificate file and re-check it: nothing unverified reaches the plant.
 
     Parameters
@@ -204,7 +204,7 @@ def load_certificate(path: Path) -> GainCertificate:
     GainCertificate
         The certificate, verified.
     """
-    from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.certification.verification import load_certificate
 
     try:
         text = path.read_text()
@@ -212,10 +212,9 @@ def load_certificate(path: Path) -> GainCertificate:
         reason = getattr(error, "strerror", None) or str(error)
         raise _bad("--certificate", f"cannot read {path}: {reason}") from None
     try:
-        certificate = GainCertificate.from_json(text)
+        return load_certificate(text)
     except ValueError as error:
         raise _bad("--certificate", f"{path}: {error}") from None
-    return certificate
 
 
 def certificate_option(function: Any) -> Any:

@@ -12,7 +12,7 @@ import numpy as np
 from teleopkit.cli.options import (
     certificate_option,
     check_output_dir,
-    load_certificate,
+    read_certificate,
     single_thread,
 )
 
@@ -48,7 +48,7 @@ def env_config(certificate: Path | None, duration: float) -> FlexTeleopConfig:
     config = FlexTeleopConfig(episode_length=duration)
     if certificate is None:
         return config
-    loaded = load_certificate(certificate)
+    loaded = read_certificate(certificate)
     loaded.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
                  (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))  # before any work
     return FlexTeleopConfig(certificate=loaded, episode_length=duration)

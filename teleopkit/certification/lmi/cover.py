@@ -3,25 +3,24 @@
 For frozen (constant) gains the least conservative LMI lets the functional depend on the gains,
 which needs every gain vertex as a system: ``4^n`` of them, too many for two joints (see
 :mod:`teleopkit.certification.lmi.systems`). A set of constant gains is certified just as well by
-cells that cover it, each certified on its own. Here each cell is certified for gains
-*switching* inside it (one functional, gains as a multiplier uncertainty: a few seconds per
-cell), which is conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that
-fail are halved along the gain whose range is widest in ratio (``max / min``), at the geometric
-mean, until every cell is certified, a cell cannot be split further, or the budget of solves is
-spent. After a level in which no cell is certified, the failed cells are split twice (the
-level between is skipped: its cells are nearly as wide and mostly fail too). A level of more
-than :data:`PROBES` cells first solves its most promising ones (largest closed-form margin at
-the weakest vertex); if one of them fails, the whole level is split without solving the rest,
-which would mostly fail too. The cells of one level of the split are solved together on the
-local cores (:mod:`~teleopkit.certification.lmi.workers`), and a cell's LMI is retried in balanced
-coordinates only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.
-
-No LMI certifies a cell whose corner it cannot certify alone, and a corner alone is a smaller
-problem than a cell, so corners are checked before the cells that would need them: the one the
-closed form finds weakest once the whole set (the first cell) fails, then all of them once a
-whole level fails or the split has failed as many cells as the set has corners, weakest first,
-:data:`CORNERS_AT_ONCE` at a time. A gain point of the set found not certified alone, now or by
-an earlier cover sharing the memo, ends the search at once.
+cells that cover it, each certified on its own. Here each cell is certified for gains *switching*
+inside it (one functional, gains as a multiplier uncertainty: a few seconds per cell), which is
+conservative on a wide cell but close to the frozen certificate on a narrow one. Cells that fail are
+halved along the gain whose range is widest in ratio (``max / min``), at the geometric mean, until
+every cell is certified, a cell cannot be split further, or the budget of solves is spent. After a
+level in which no cell is certified, the failed cells are split twice (the level between is skipped:
+its cells are nearly as wide and mostly fail too). A level of more than :data:`PROBES` cells first
+solves its most promising ones (largest closed-form margin at the weakest vertex); if one of them
+fails, the whole level is split without solving the rest, which would mostly fail too. The cells of
+one level of the split are solved together on the local cores
+(:mod:`~teleopkit.certification.lmi.workers`), and a cell's LMI is retried in balanced coordinates
+only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.  No LMI certifies
+a cell whose corner it cannot certify alone, and a corner alone is a smaller problem than a cell, so
+corners are checked before the cells that would need them: the one the closed form finds weakest
+once the whole set (the first cell) fails, then all of them once a whole level fails or the split
+has failed as many cells as the set has corners, weakest first, :data:`CORNERS_AT_ONCE` at a time. A
+gain point of the set found not certified alone, now or by an earlier cover sharing the memo, ends
+the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at

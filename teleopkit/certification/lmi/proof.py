@@ -4,7 +4,7 @@ An LMI certificate of a gain set is one LMI solution, or a cover: cells (the set
 of a recursive split of its bounding box), each with its own solution. Its proof records, per
 cell, the box and what :class:`certify.Certificate` needs to re-check the LMIs (decision
 matrices, channel maps, state scaling), and the boxes of the split that miss the set. It does
-not record the linear systems: :func:`verify_proof` rebuilds them from the plant, the set and
+not record the linear systems: :func:`check_proof` rebuilds them from the plant, the set and
 the boxes, so an edited plant, set, bound or matrix cannot pass.
 
 That the cells cover the set is checked too: the boxes lie in the box that was split (the set's
@@ -27,7 +27,7 @@ from teleopkit.certification.lmi.cover import Cover
 from teleopkit.certification.lmi.systems import NO_LOWER, gain_set_system
 from teleopkit.model.params import TeleoperatorParams
 
-__all__ = ["certificate_proof", "cover_proof", "verify_proof"]
+__all__ = ["certificate_proof", "check_proof", "cover_proof"]
 
 _VOLUME_RTOL = 1e-9
 
@@ -98,7 +98,7 @@ def _lmi_data(cert: Certificate) -> dict[str, Any]:
                                        "matrices", "channels", "scaling")}
 
 
-def verify_proof(params: TeleoperatorParams, polytope: GainPolytope, proof: Mapping[str, Any],
+def check_proof(params: TeleoperatorParams, polytope: GainPolytope, proof: Mapping[str, Any],
                  bounds: Sequence[float], variations: Sequence[str],
                  delay_lower: Sequence[float] = NO_LOWER) -> None:
     """Raise unless ``proof`` certifies ``polytope`` for delays in ``[delay_lower, bounds]``.

@@ -24,7 +24,7 @@ from teleopkit.certification.lmi.cover import (
     limiting_vertex,
     set_certificate,
 )
-from teleopkit.certification.lmi.proof import certificate_proof, cover_proof, verify_proof
+from teleopkit.certification.lmi.proof import certificate_proof, check_proof, cover_proof
 from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
@@ -36,8 +36,14 @@ from teleopkit.certification.lmi.workers import start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
-__all__ = ["MARGIN_BUDGET", "MARGIN_FLOOR", "certify_lmi", "cut_polytope", "lmi_assumptions",
-           "verify_lmi"]
+__all__ = [
+    "MARGIN_BUDGET",
+    "MARGIN_FLOOR",
+    "certify_lmi",
+    "check_lmi",
+    "cut_polytope",
+    "lmi_assumptions",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -271,12 +277,12 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
                     "margin_proof": proof}
 
 
-def verify_lmi(certificate: GainCertificate) -> None:
+def check_lmi(certificate: GainCertificate) -> None:
     """Raise unless an LMI certificate's proofs hold for the plant and box it records.
 
     The offered polytope must be the box (when the box is certified) or the member of
     :func:`cut_polytope` at the recorded scale; a certified polytope needs a proof that holds
-    (:func:`~teleopkit.certification.lmi.proof.verify_proof`), and so does a positive delay margin.
+    (:func:`~teleopkit.certification.lmi.proof.check_proof`), and so does a positive delay margin.
 
     Parameters
     ----------
@@ -306,11 +312,11 @@ def verify_lmi(certificate: GainCertificate) -> None:
     if certificate.polytope_certified or certificate.certified:
         if "proof" not in details:
             raise ValueError("the certificate claims a certified set but carries no LMI proof")
-        verify_proof(params, certificate.polytope, details["proof"], (tl_max, tr_max), covering,
+        check_proof(params, certificate.polytope, details["proof"], (tl_max, tr_max), covering,
                      certificate.delay_lower)
     if certificate.delay_margin > 0:
         proof = details.get("margin_proof")
         if proof is None:
             raise ValueError("the certificate states a delay margin but carries no LMI proof of it")
         margin = certificate.delay_margin
-        verify_proof(params, whole, proof, (margin, margin), covering, certificate.delay_lower)
+        check_proof(params, whole, proof, (margin, margin), covering, certificate.delay_lower)
