@@ -35,12 +35,15 @@ import torch
 from torch import nn
 
 from teleopkit.certification.certifier import default_certificate
+from teleopkit.model.params import paper_setup
 from teleopkit.rl.env import FlexTeleopVectorEnv
 from teleopkit.rl.networks import Critic
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.factory import layer_for
+from teleopkit.safety.layer import SafetyLayer
 from teleopkit.sim import Simulator, paper_scenarios
+from teleopkit.sim.energy import motor_speed_integral, remote_energy
 
 OBS, ACT = 14, 4
 
@@ -157,18 +160,23 @@ def latency_rows(env, calls: int) -> list[tuple[str, float, float]]:
 
 def class_rows(calls: int) -> list[tuple[str, float, float]]:
     raws = np.random.default_rng(0).uniform([1, 1, 1, 1], [50, 50, 150, 150], (64, 4))
+    params = paper_setup()
     state = Simulator(paper_scenarios(0, batch=1)).state
+
+    def measure(layer: SafetyLayer) -> None:
+        layer.observe(remote_energy(params, state), motor_speed_integral(state))
+
     rows = []
     for variation in ("frozen", "scheduled:2", "tank"):
-        layer = SafetyLayer.from_certificate(default_certificate(variation=variation))
+        layer = layer_for(default_certificate(variation=variation))
         layer.reset()
-        layer.observe(state)
+        measure(layer)
         step = iter(range(10**9))
         rows.append((f"projection, {variation} class",
-                     *percentiles(lambda layer=layer, step=step: layer.project(
+                     *percentiles(lambda layer=layer, step=step: layer.step(
                          raws[next(step) % len(raws)]), calls)))
     rows.append(("tank: measuring the state (once a period)",
-                 *percentiles(lambda: layer.observe(state), calls // 10)))
+                 *percentiles(lambda: measure(layer), calls // 10)))
     return rows
 
 

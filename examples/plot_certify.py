@@ -19,7 +19,7 @@ from teleopkit.certification import certify_gains, load_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.report import certificate_table
 from teleopkit.model.params import paper_setup
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.factory import layer_for
 
 BUDGET = os.environ.get("TELEOPKIT_DOCS_BUDGET", "full")
 SMALL = BUDGET == "small"
@@ -75,7 +75,7 @@ print(again.delay_margin == wide_cert.delay_margin)
 # The half-plane boundary ``B_r = (T_l* + T_r*)^2 K_l K_r / (4 B_l)`` moves with the delay bound;
 # the grey polygon is the certified set for ``T* = 1 s``. A raw gain outside it (the cross) is
 # mapped by :class:`teleopkit.safety.SafetyLayer` to the nearest certified gain (the dot).
-layer = SafetyLayer.from_certificate(wide_cert)
+layer = layer_for(wide_cert)
 raw = np.array([40.0, 40.0, 60.0, 60.0])
 projection = layer.project(raw)
 print(projection.action, projection.distance, layer.active_labels(projection.active))

@@ -14,7 +14,7 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
 from teleopkit.rl.torch_projection import TorchProjection
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.factory import layer_for
 
 torch.set_num_threads(1)
 
@@ -26,7 +26,7 @@ SMALL = TD3Config(batch_size=32)
 
 @pytest.fixture(scope="module")
 def layer():
-    return SafetyLayer.from_certificate(default_certificate())
+    return layer_for(default_certificate())
 
 
 def make_agent(layer, seed=0, config=SMALL):
@@ -72,7 +72,7 @@ def test_actor_output_starts_at_the_box_centre_and_covers_the_box():
 
 
 def test_critic_sizes():
-    agent = make_agent(SafetyLayer.from_certificate(default_certificate()))
+    agent = make_agent(layer_for(default_certificate()))
     critic = agent.critics[0]
     shapes = [(m.in_features, m.out_features) for m in critic.modules()
               if isinstance(m, torch.nn.Linear)]

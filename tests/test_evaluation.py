@@ -22,7 +22,7 @@ from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import ConstantGains, evaluate, rollout, save_report
 from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
 from teleopkit.rl.td3 import TD3
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.factory import layer_for
 from teleopkit.sim.scenarios import paper_scenarios
 
 BOX = GainBox.uniform((5.0, 20.0), (30.0, 100.0))
@@ -35,7 +35,7 @@ ONE_SECOND = FlexTeleopConfig(episode_length=1.0)  # the delayed operator motion
 
 @pytest.fixture(scope="module")
 def layer():
-    return SafetyLayer.from_certificate(default_certificate())
+    return layer_for(default_certificate())
 
 
 @pytest.fixture(scope="module")

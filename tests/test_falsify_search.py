@@ -10,7 +10,7 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import paper_setup
 from teleopkit.robustness.adversary import SearchSpace, decode, gain_schedule
 from teleopkit.robustness.search import search
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.polytope import PolytopeLayer
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
 
@@ -24,7 +24,7 @@ def nuno() -> GainCertificate:
 @pytest.mark.parametrize("switching", [False, True])
 def test_decisions_stay_inside_the_polytope_and_the_delay_bounds(nuno, rng, delays, switching):
     space = SearchSpace(paper_setup(), nuno, switching, delays, duration=2.0)
-    decision = decode(space, rng.random((32, space.dimension)), SafetyLayer(nuno.polytope))
+    decision = decode(space, rng.random((32, space.dimension)), PolytopeLayer(nuno.polytope))
     assert np.all(nuno.polytope.contains(decision.gains, tol=1e-7))
     t = np.linspace(0.0, 2.0, 401)
     for profile in (decision.forward, decision.backward):
@@ -40,7 +40,7 @@ def test_a_rate_bound_limits_every_step_of_the_schedule(rng):
                          "nuno")
     rated = GainCertificate(**{**cert.__dict__, "gain_variation": "rate:50"})
     space = SearchSpace(paper_setup(), rated, duration=3.0)
-    decision = decode(space, rng.random((4, space.dimension)), SafetyLayer(cert.polytope))
+    decision = decode(space, rng.random((4, space.dimension)), PolytopeLayer(cert.polytope))
     schedule = gain_schedule(space, decision)
     assert schedule.shape == (300, 4, 4)
     assert np.abs(np.diff(schedule, axis=0)).max() <= 50 * 0.01 + 1e-12

@@ -22,7 +22,7 @@ from teleopkit.model.params import (
     paper_setup,
 )
 from teleopkit.robustness.falsification import falsify
-from teleopkit.safety import SafetyLayer
+from teleopkit.safety.factory import layer_for
 
 WIDE = GainBox.uniform((1.0, 50.0), (1.0, 150.0), n_joints=1)
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
@@ -88,7 +88,7 @@ def test_switching_is_harder_than_frozen_and_rate_is_certified_as_switching(one_
     assert rate.certified and rate.gain_variation == "rate:5"
     assert 0.0 < rate.delay_margin <= frozen.delay_margin
     assert any("certified as arbitrary switching" in a for a in rate.assumptions)
-    layer = SafetyLayer.from_certificate(rate)
+    layer = layer_for(rate)
     assert layer.max_step is not None
 
 

@@ -13,16 +13,18 @@ from hypothesis.extra.numpy import arrays
 from teleopkit.certification import certify_gains
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import paper_setup
-from teleopkit.safety import Fallback, SafetyLayer
+from teleopkit.safety import Fallback
+from teleopkit.safety.factory import layer_for
+from teleopkit.safety.polytope import PolytopeLayer
 
 SETTINGS = settings(deadline=None, max_examples=200,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])
 REFERENCE = settings(SETTINGS, max_examples=50)
 
 CERT = certify_gains(paper_setup(), GainBox.uniform((1.0, 50.0), (1.0, 150.0)), 1.0, 1.0)
-LAYER = SafetyLayer.from_certificate(CERT)
+LAYER = layer_for(CERT)
 STEP = np.array([0.5, 0.5, 2.0, 2.0])
-RATE_LAYER = SafetyLayer(CERT.polytope, max_step=STEP)
+RATE_LAYER = PolytopeLayer(CERT.polytope, max_step=STEP)
 
 gains = st.floats(-100.0, 300.0, allow_nan=False, allow_infinity=False)
 actions = arrays(np.float64, 4, elements=gains)
@@ -178,7 +180,7 @@ def polygon_polytopes(draw):
 @settings(SETTINGS, max_examples=25)
 @given(polygon_polytopes(), actions)
 def test_random_polygons_match_the_reference(polytope, raw):
-    layer = SafetyLayer(polytope)
+    layer = PolytopeLayer(polytope)
     result = layer.project(raw)
     assert polytope.contains(result.action, tol=1e-9)
     np.testing.assert_allclose(result.action, layer.project_qp(raw), rtol=0, atol=1e-7)
@@ -190,7 +192,7 @@ def test_the_reference_is_exact_far_from_the_set():
     box = GainPolytope.from_box(GainBox.uniform((0.0, 50.0), (0.0, 150.0)))
     cuts = np.array([[np.cos(1.0), 0.0, np.sin(1.0), 0.0], [np.cos(5.0), 0.0, np.sin(5.0), 0.0]])
     polytope = box.intersect(cuts, np.array([7.90886645, -2.37631045]), ("cut 0", "cut 1"))
-    layer = SafetyLayer(polytope)
+    layer = PolytopeLayer(polytope)
     raw = np.array([200.0, 12.0, -1e-5, -1e-5])
     exact = layer.project(raw).action
     assert exact[3] == 0.0
@@ -201,42 +203,42 @@ def test_uncertified_certificate_is_refused():
     lmi = dataclasses.replace(CERT, method="lmi", certified=False, polytope_certified=False,
                               violation="LMI infeasible")
     with pytest.raises(ValueError, match="does not certify"):
-        SafetyLayer.from_certificate(lmi)
-    SafetyLayer.from_certificate(dataclasses.replace(lmi, polytope_certified=True))
+        layer_for(lmi)
+    layer_for(dataclasses.replace(lmi, polytope_certified=True))
 
 
 def test_empty_polytope_is_refused():
     cert = certify_gains(paper_setup(), GainBox.uniform((40.0, 50.0), (1.0, 10.0)), 1.0, 1.0)
     with pytest.raises(ValueError, match="empty"):
-        SafetyLayer.from_certificate(cert)
+        layer_for(cert)
 
 
 def test_rate_cannot_exceed_the_certified_rate():
     rated = dataclasses.replace(CERT, method="lmi", certified=True, gain_variation="rate:50")
-    layer = SafetyLayer.from_certificate(rated, period=0.01)
+    layer = layer_for(rated, period=0.01)
     np.testing.assert_allclose(layer.max_step, 0.5)
-    assert SafetyLayer.from_certificate(rated, rate=10.0).max_step == pytest.approx(0.1)
+    assert layer_for(rated, rate=10.0).max_step == pytest.approx(0.1)
     with pytest.raises(ValueError, match="exceeds"):
-        SafetyLayer.from_certificate(rated, rate=100.0)
-    assert SafetyLayer.from_certificate(CERT).max_step is None
+        layer_for(rated, rate=100.0)
+    assert layer_for(CERT).max_step is None
 
 
 def test_malformed_polytopes_are_refused():
     box = GainPolytope.from_box(GainBox.uniform((1.0, 50.0), (1.0, 150.0)))
     coupled = box.intersect(np.array([[1.0, 1.0, 0.0, 0.0]]), np.array([60.0]), ("coupled",))
     with pytest.raises(ValueError, match="couples joints"):
-        SafetyLayer(coupled)
+        PolytopeLayer(coupled)
     unbounded = GainPolytope(box.G[:4], box.h[:4], box.labels[:4])
     with pytest.raises(ValueError, match="unbounded"):
-        SafetyLayer(unbounded)
+        PolytopeLayer(unbounded)
     with pytest.raises(ValueError, match="positive"):
-        SafetyLayer(box, max_step=0.0)
+        PolytopeLayer(box, max_step=0.0)
     with pytest.raises(ValueError, match="shape"):
-        SafetyLayer(box).project(np.zeros(3))
+        PolytopeLayer(box).project(np.zeros(3))
 
 
 def test_near_ties_between_edges_are_resolved_exactly():
     """Far from the set, two candidates a micro-unit apart have equal squared distances."""
-    layer = SafetyLayer(GainPolytope.from_box(GainBox.uniform((0.0, 50.0), (0.0, 150.0))))
+    layer = PolytopeLayer(GainPolytope.from_box(GainBox.uniform((0.0, 50.0), (0.0, 150.0))))
     raw = np.array([178.0, 1e-6, 1e-6, 1e-6])
     np.testing.assert_array_equal(layer.project(raw).action, [50.0, 1e-6, 1e-6, 1e-6])

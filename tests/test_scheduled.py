@@ -25,6 +25,7 @@ from teleopkit.delays import ConstantDelay, SwitchingDelay
 from teleopkit.model.params import Operator, PDGains, paper_setup
 from teleopkit.rl.torch_projection import torch_projection
 from teleopkit.safety import CertifiedLoop, SafetyLayer
+from teleopkit.safety.factory import layer_for
 from teleopkit.sim import Scenario, Simulator, StateLayout
 
 BOX = GainBox.uniform((1.0, 50.0), (1.0, 150.0))
@@ -124,34 +125,34 @@ def run_loop(layer: SafetyLayer, sim: Simulator, steps: int, rng, high: float = 
 
 @pytest.mark.parametrize("budget", [0.0, 0.5, 2.0])
 def test_the_budget_bounds_the_storage_along_any_raw_actions(budget, rng):
-    layer = SafetyLayer.from_certificate(certified(f"scheduled:{budget:g}"))
+    layer = layer_for(certified(f"scheduled:{budget:g}"))
     trajectory, levels = run_loop(layer, adversarial(PASSIVE, seed=3), 800, rng)
     assert levels.min() >= -1e-12 and levels.max() <= budget
-    kappa = layer.storage.kappa(trajectory.gains)
+    kappa = layer.certificate.storage.kappa(trajectory.gains)
     falls = np.log(np.maximum(1.0, kappa[1:-1] / kappa[2:])).sum(axis=0)
     np.testing.assert_allclose(falls, budget - levels[-1], atol=1e-9)
     assert np.all(np.diff(levels, axis=0) <= 1e-15)  # a budget is only ever spent
-    value = layer.storage.value(PASSIVE, trajectory)
+    value = layer.certificate.storage.value(PASSIVE, trajectory)
     assert (value / value[0]).max() <= math.exp(budget) * (1 + 1e-7)
 
 
 def test_the_tank_keeps_storage_plus_tank_from_rising(rng):
-    layer = SafetyLayer.from_certificate(certified("tank:0.05"))
+    layer = layer_for(certified("tank:0.05"))
     trajectory, levels = run_loop(layer, adversarial(PASSIVE, seed=5), 1000, rng)
-    value = layer.storage.value(PASSIVE, trajectory)
+    value = layer.certificate.storage.value(PASSIVE, trajectory)
     total = value + levels  # just after each sample, its jump paid
     assert (np.diff(total, axis=0) / total[:-1]).max() < 1e-7
     assert levels.min() >= -1e-12
-    kappa = layer.storage.kappa(trajectory.gains)
+    kappa = layer.certificate.storage.kappa(trajectory.gains)
     assert np.any(kappa[2:] < kappa[1:-1] - 1e-6)  # the tank did pay for falls
 
 
 def test_the_shaped_plant_keeps_its_common_shape(rng):
-    layer = SafetyLayer.from_certificate(certified("scheduled:1", SHAPED))
+    layer = layer_for(certified("scheduled:1", SHAPED))
     trajectory, _ = run_loop(layer, adversarial(SHAPED, seed=7), 300, rng)
     gains = trajectory.gains
     np.testing.assert_allclose(gains[..., 1], 0.6 * gains[..., 0], rtol=1e-12)
-    value = layer.storage.value(SHAPED, trajectory)
+    value = layer.certificate.storage.value(SHAPED, trajectory)
     assert (value / value[0]).max() <= math.e * (1 + 1e-7)
 
 
@@ -161,9 +162,9 @@ raw_actions = arrays(np.float64, 4, elements=st.floats(-300.0, 400.0))
 @settings(deadline=None, max_examples=150)
 @given(st.lists(raw_actions, min_size=1, max_size=6))
 def test_projection_matches_the_qp_at_every_step(sequence):
-    layer = SafetyLayer.from_certificate(certified("scheduled:0.7"))
+    layer = layer_for(certified("scheduled:0.7"))
     for raw in sequence:
-        result = layer.project(raw)
+        result = layer.step(raw)
         expected = layer.project_qp(raw, floor=float(layer.last_floor[0]))
         np.testing.assert_allclose(result.action, expected, rtol=0, atol=1e-6)
         assert layer.contains(result.action[None]).all()
@@ -171,28 +172,30 @@ def test_projection_matches_the_qp_at_every_step(sequence):
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 1e300, -1e300])
 def test_projection_is_total(bad):
-    layer = SafetyLayer.from_certificate(certified("scheduled:0.3"))
-    first = layer.project(np.array([bad, 10.0, 30.0, 30.0]))
+    layer = layer_for(certified("scheduled:0.3"))
+    first = layer.step(np.array([bad, 10.0, 30.0, 30.0]))
     assert layer.contains(first.action[None]).all()
-    second = layer.project(np.array([20.0, 20.0, bad, 60.0]), first.action)
+    second = layer.step(np.array([20.0, 20.0, bad, 60.0]))
     assert layer.contains(second.action[None]).all()
     if not math.isfinite(bad) or abs(bad) > 1e299:
         assert second.action[0] >= first.action[0] * math.exp(-0.3) - 1e-12
 
 
-def test_a_foreign_history_is_refused():
-    layer = SafetyLayer.from_certificate(certified("scheduled:1"))
-    layer.project(np.array([10.0, 10.0, 30.0, 30.0]))
-    with pytest.raises(ValueError, match="keeps its own history"):
-        layer.project(np.array([5.0, 5.0, 30.0, 30.0]), np.array([40.0, 40.0, 140.0, 140.0]))
+def test_the_layer_keeps_its_own_history():
+    layer = layer_for(certified("scheduled:1"))
+    first = layer.step(np.array([40.0, 40.0, 140.0, 140.0]))
+    second = layer.step(np.array([5.0, 5.0, 30.0, 30.0]))  # a fall: spends the budget
+    assert second.action[0] == pytest.approx(first.action[0] * math.exp(-1.0))
     with pytest.raises(ValueError, match="episode has 1 scenarios"):
-        layer.project_batch(np.ones((3, 4)))
+        layer.step(np.ones((3, 4)))
+    layer.reset()
+    assert layer.step(np.ones((3, 4))).action.shape == (3, 4)
 
 
 @pytest.mark.parametrize("variation", ["scheduled:0.4", "tank:0.02"])
 def test_torch_projection_is_the_layers_projection_at_every_step(variation, rng):
     """The actor is trained through the step's set: floor from the observed run-time state."""
-    layer = SafetyLayer.from_certificate(certified(variation))
+    layer = layer_for(certified(variation))
     loop = CertifiedLoop(layer)
     loop.start(adversarial(PASSIVE, batch=4))
     projection = torch_projection(layer)
@@ -212,9 +215,9 @@ def test_certificate_round_trip_and_verify(variation):
     check_certificate(loaded)
     assert loaded.gain_variation == variation and loaded.certified is False
     assert loaded.polytope_certified and loaded.details["storage"]["cone"] == [2.5, 2.5]
-    layer = SafetyLayer.from_certificate(loaded)
+    layer = layer_for(loaded)
     columns = 3 if variation.startswith("tank") else 2
-    assert layer.stateful and layer.run_time_state(2).shape == (2, columns)
+    assert layer.run_time_state(2).shape == (2, columns)
 
 
 def test_a_tampered_scheduled_certificate_is_refused():

@@ -16,6 +16,8 @@ from typing import Any
 
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.nuno.lyapunov import ScheduledStorage
+from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import TeleoperatorParams, plant_mismatch
 
 __all__ = ["GainCertificate"]
@@ -74,6 +76,18 @@ class GainCertificate:
     def variation(self) -> GainVariation:
         """The gain class, parsed."""
         return parse_gain_variation(self.gain_variation)
+
+    @property
+    def scheduled_set(self) -> ScheduledSet | None:
+        """The set of a scheduled class (``details["set"]``), None for the other classes."""
+        data = self.details.get("set")
+        return None if data is None else ScheduledSet.from_dict(data)
+
+    @property
+    def storage(self) -> ScheduledStorage | None:
+        """The Lyapunov storage of a scheduled class (``details["storage"]``), else None."""
+        data = self.details.get("storage")
+        return None if data is None else ScheduledStorage.from_details(data)
 
     def check(self, params: TeleoperatorParams, forward_bound: float | None = None,
               backward_bound: float | None = None,

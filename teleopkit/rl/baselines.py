@@ -24,6 +24,7 @@ import numpy as np
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.delays.profiles import FourierDelay
 from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.sim.scenarios import Scenario, paper_scenarios
 from teleopkit.sim.simulator import Simulator
@@ -169,7 +170,7 @@ def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
     config = config if config is not None else FlexTeleopConfig()
     certificate = config.certificate or default_certificate(config.params)
     if layer is None:
-        layer = SafetyLayer.from_certificate(certificate, config.control_period)
+        layer = layer_for(certificate, config.control_period)
     box = certificate.box
     scenario = paper_scenarios(seed, scenarios, config.params)
     candidates = _grid(layer, box.lower, box.upper, grid_points)

@@ -44,6 +44,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.rl.registration import ENV_ID
 from teleopkit.rl.scoring import RewardWeights, observation, score
+from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
 from teleopkit.sim.scenarios import (
@@ -171,8 +172,7 @@ class TeleopBatch:
                             else default_certificate(config.params))
         self.certificate.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
                                (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
-        self.loop = CertifiedLoop(SafetyLayer.from_certificate(self.certificate,
-                                                               config.control_period))
+        self.loop = CertifiedLoop(layer_for(self.certificate, config.control_period))
         self.steps = 0
 
     @property
@@ -221,9 +221,8 @@ class TeleopBatch:
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         """The paper's observation, then the safety layer's run-time state (if it keeps one)."""
-        if not self.layer.stateful:
-            return obs
-        return np.concatenate([obs, self.layer.run_time_state(self.batch)], axis=1)
+        extra = self.layer.run_time_state(self.batch)
+        return obs if extra.shape[1] == 0 else np.concatenate([obs, extra], axis=1)
 
     def step(self, raw: np.ndarray) -> BatchStep:
         """Project, simulate and score one period.
@@ -255,7 +254,7 @@ class TeleopBatch:
                 "fallback": projection.fallback != 0, "fallback_flags": projection.fallback,
                 "active_constraints": projection.active, "time": np.full(self.batch, result.t[0]),
                 "delays": result.delays[0]}
-        if self.layer.stateful:
+        if self.layer.run_time_state(1).shape[1]:
             info["schedule"] = projection.schedule
         return BatchStep(obs, reward, failed, truncated, info, result)
 

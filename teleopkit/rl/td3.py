@@ -68,6 +68,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from teleopkit.certification.gain_sets import GainPolytope
+from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.rl.networks import Actor, Critic, Standardise
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import Batch
@@ -206,8 +207,9 @@ class TD3:
         Observation size.
     low, high : ndarray, shape (act_dim,)
         Action box (the environment's action space).
-    certified : GainPolytope or SafetyLayer
-        Certified set the environment projects onto (the safety layer, or its polytope).
+    certified : GainPolytope, ScheduledSet or SafetyLayer
+        Certified set the environment projects onto (a safety layer stands for its
+        :attr:`~teleopkit.safety.layer.SafetyLayer.admissible_set`).
     config : TD3Config, optional
         Hyperparameters.
     seed : int
@@ -224,7 +226,7 @@ class TD3:
     """
 
     def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
-                 certified: GainPolytope | SafetyLayer,
+                 certified: GainPolytope | ScheduledSet | SafetyLayer,
                  config: TD3Config | None = None, seed: int = 0) -> None:
         self.config = config if config is not None else TD3Config()
         low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
@@ -271,8 +273,8 @@ class TD3:
         """
         space = getattr(env, "single_action_space", env.action_space)
         observation = getattr(env, "single_observation_space", env.observation_space)
-        return cls(observation.shape[0], space.low, space.high, env.safety_layer,
-                   config, seed)
+        return cls(observation.shape[0], space.low, space.high,
+                   env.safety_layer.admissible_set, config, seed)
 
     def _networks(self) -> dict[str, nn.Module]:
         return {"actor": self.actor, "critics": self.critics, "actor_target": self.actor_target,

@@ -16,37 +16,37 @@ import torch
 from torch import nn
 
 from teleopkit.certification.gain_sets import GainPolytope
+from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.safety.layer import SafetyLayer
-from teleopkit.safety.schedule import TANK
 
 __all__ = ["ScheduledTorchProjection", "TorchProjection", "torch_projection"]
 
 
-def torch_projection(certified: GainPolytope | SafetyLayer) -> nn.Module:
+def torch_projection(certified: GainPolytope | ScheduledSet | SafetyLayer) -> nn.Module:
     """The torch projection onto a certified set.
 
     Parameters
     ----------
-    certified : GainPolytope or SafetyLayer
-        A polytope of per-joint polygons, or a safety layer (its set, static part).
+    certified : GainPolytope, ScheduledSet or SafetyLayer
+        A polytope of per-joint polygons, a scheduled class's set, or a safety layer (its
+        :attr:`~teleopkit.safety.layer.SafetyLayer.admissible_set`).
 
     Returns
     -------
     torch.nn.Module
-        :class:`ScheduledTorchProjection` for a scheduled layer, else :class:`TorchProjection`.
+        :class:`ScheduledTorchProjection` for a scheduled set, else :class:`TorchProjection`.
     """
     if isinstance(certified, SafetyLayer):
-        if certified.stateful:
-            layer = certified
-            return ScheduledTorchProjection(*layer.step_set, mode=layer.mode)  # type: ignore
-        return TorchProjection(certified.polytope)
+        certified = certified.admissible_set
+    if isinstance(certified, ScheduledSet):
+        return ScheduledTorchProjection(certified)
     return TorchProjection(certified)
 
 
 class TorchProjection(nn.Module):
     """Exact Euclidean projection onto a per-joint polygon product, differentiable by autograd.
 
-    The same map as :meth:`teleopkit.safety.SafetyLayer.project_batch` (without a rate bound):
+    The same map as :meth:`teleopkit.safety.PolytopeLayer.project_batch` (without a rate bound):
     a point inside its joint's polygon stays, any other goes to the nearest point of the
     polygon's edges.
 
@@ -113,25 +113,19 @@ class ScheduledTorchProjection(nn.Module):
 
     Parameters
     ----------
-    shape, rho, beta, b_lo, b_hi : ndarray, shape (n,)
-        The common shape, the cone ``B_r^i >= rho_i s_i kappa + beta_i`` and the damping box.
-    kappa_lo, kappa_hi : float
-        The interval of ``kappa``.
-    mode : int, optional
-        :data:`~teleopkit.safety.schedule.BUDGET` or :data:`~teleopkit.safety.schedule.TANK`:
-        how the observation's last columns (level, previous ``kappa``, remote energy) give the
-        step's floor; ``None`` for the static set alone.
+    scheduled : ScheduledSet
+        The class's set: common shape, cone ``B_r^i >= rho_i s_i kappa + beta_i``, damping box
+        and ``kappa`` range; its rule (budget or tank) says how the observation's last columns
+        (level, previous ``kappa``, remote energy) give the step's floor.
     """
 
-    def __init__(self, shape: np.ndarray, rho: np.ndarray, beta: np.ndarray, b_lo: np.ndarray,
-                 b_hi: np.ndarray, kappa_lo: float, kappa_hi: float,
-                 mode: int | None = None) -> None:
+    def __init__(self, scheduled: ScheduledSet) -> None:
         super().__init__()
-        self.n = len(shape)
-        self.kappa_lo, self.kappa_hi = float(kappa_lo), float(kappa_hi)
-        self.mode = mode
-        self._constants = {dtype: tuple(torch.as_tensor(np.asarray(x, dtype=float), dtype=dtype)
-                                        for x in (shape, rho, beta, b_lo, b_hi))
+        self.n = scheduled.n_joints
+        self.kappa_lo, self.kappa_hi = scheduled.kappa_low, scheduled.kappa_high
+        self.tank = scheduled.rule == "tank"
+        self._constants = {dtype: tuple(torch.as_tensor(x, dtype=dtype)
+                                        for x in scheduled.arrays())
                            for dtype in (torch.float32, torch.float64)}
 
     def floor(self, obs: torch.Tensor | None) -> torch.Tensor | float:
@@ -146,11 +140,11 @@ class ScheduledTorchProjection(nn.Module):
         Returns
         -------
         torch.Tensor, shape (B, 1), or float
-            The floor (``kappa_lo`` without an observation or a mode).
+            The floor (``kappa_lo`` without an observation: the static set).
         """
-        if obs is None or self.mode is None:
+        if obs is None:
             return self.kappa_lo
-        tank = self.mode == TANK
+        tank = self.tank
         level, previous = obs[:, -3 if tank else -2], obs[:, -2 if tank else -1]
         if tank:
             energy = obs[:, -1]

@@ -291,7 +291,7 @@ class _Run:
         Warm-up: the same fraction of the box on every joint; noise: the same unit normal
         offset on every joint (scaled by the current standard deviation when used).
         """
-        if not self.env.safety_layer.stateful:
+        if self.env.safety_layer.run_time_state(1).shape[1] == 0:
             return
         n = len(self.low) // 2
         fraction = self.explore.uniform(size=(self.config.num_envs, 1))

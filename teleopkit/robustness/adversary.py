@@ -19,7 +19,9 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.delays.adversarial import PiecewiseDelay, SquareWaveDelay
 from teleopkit.model.params import TeleoperatorParams
+from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
+from teleopkit.safety.polytope import PolytopeLayer
 from teleopkit.sim.divergence import DIVERGENCE_RADIUS
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
@@ -128,8 +130,8 @@ class SearchSpace:
     def layer(self) -> SafetyLayer:
         """The projection the adversary's gains go through (the class's layer when scheduled)."""
         if self.variation.scheduled:
-            return SafetyLayer.from_certificate(self.certificate, self.control_period)
-        return SafetyLayer(self.certificate.polytope)
+            return layer_for(self.certificate, self.control_period)
+        return PolytopeLayer(self.certificate.polytope)
 
     @property
     def dimension(self) -> int:

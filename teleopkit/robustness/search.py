@@ -53,16 +53,13 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from teleopkit.certification.nuno.lyapunov import ScheduledStorage
-from teleopkit.model.dynamics import kinetic_energy, remote_energy
-from teleopkit.model.params import TeleoperatorParams
 from teleopkit.robustness.adversary import Decision, SearchSpace, decode, gain_schedule
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
 from teleopkit.sim.divergence import Divergence, position_magnitude
+from teleopkit.sim.energy import mechanical_energy
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
-from teleopkit.sim.state import StateLayout
 from teleopkit.sim.trajectory import Trajectory
 
 __all__ = ["OBJECTIVES", "SearchResult", "search"]
@@ -88,16 +85,6 @@ def _simulate(space: SearchSpace, decision: Decision) -> tuple[Trajectory, np.nd
     return trajectory, np.full((*trajectory.t.shape, scenario.batch), np.nan)
 
 
-def _energy(params: TeleoperatorParams, trajectory: Trajectory) -> np.ndarray:
-    """Mechanical energy of both arms, rotors and joint springs, shape ``(T, B)``."""
-    layout, state = StateLayout(params.n_joints), trajectory.state
-    blocks = (layout.get(state, name) for name in ("qr", "dqr", "theta", "dtheta"))
-    with np.errstate(all="ignore"):
-        return (kinetic_energy(params.local_arm, layout.get(state, "ql"),
-                               layout.get(state, "dql"))
-                + remote_energy(params.remote_arm, params.joints, *blocks))
-
-
 def _growth(signal: np.ndarray) -> np.ndarray:
     """Log of the last-quarter peak over the second-quarter peak, per run."""
     quarter = max(1, signal.shape[0] // 4)
@@ -111,7 +98,8 @@ def _storage_ratio(space: SearchSpace, trajectory: Trajectory,
     """Largest ``(V + tank) / (V(0) + T0)`` of each run (NaN outside the scheduled classes)."""
     if not space.variation.scheduled:
         return np.full(trajectory.state.shape[1], np.nan)
-    storage = ScheduledStorage.from_details(space.certificate.details["storage"])
+    storage = space.certificate.storage
+    assert storage is not None
     with np.errstate(all="ignore"):
         total = storage.value(space.params, trajectory) + np.nan_to_num(levels)
         return np.nan_to_num(total / total[0], nan=np.inf).max(axis=0)
@@ -124,7 +112,8 @@ def _score(space: SearchSpace, run: tuple[Trajectory, np.ndarray],
     state = trajectory.state
     finite = np.all(np.isfinite(state), axis=(0, 2))
     magnitude = position_magnitude(state[1:])
-    energy = _energy(space.params, trajectory)
+    with np.errstate(all="ignore"):
+        energy = mechanical_energy(space.params, trajectory.state)
     error = (np.linalg.norm(trajectory.e_track, axis=-1)
              + np.linalg.norm(trajectory.e_damp, axis=-1))
     half = energy.shape[0] // 2

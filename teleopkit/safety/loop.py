@@ -11,6 +11,7 @@ import numpy as np
 
 from teleopkit.delays.profiles import delay_floor
 from teleopkit.safety.layer import Projection, SafetyLayer
+from teleopkit.sim.energy import motor_speed_integral, remote_energy
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.trajectory import StepResult, Trajectory
 
@@ -38,7 +39,6 @@ class CertifiedLoop:
         self.unsafe_actions = 0
         self.unsafe_by_run = np.zeros(0, dtype=np.int64)
         self._simulator: Simulator | None = None
-        self._applied: np.ndarray | None = None
 
     @property
     def simulator(self) -> Simulator:
@@ -75,12 +75,17 @@ class CertifiedLoop:
                               (delay_floor(scenario.forward), delay_floor(scenario.backward)))
         simulator.reset()
         self._simulator = simulator
-        self._applied = None
         self.unsafe_by_run = np.zeros(simulator.batch, dtype=np.int64)
         self.layer.reset()
         state = simulator.state
-        self.layer.observe(state)
+        self._measure(state)
         return state
+
+    def _measure(self, state: np.ndarray) -> None:
+        """Hand the layer the measurements its tank is paid from (if it keeps one)."""
+        if self.layer.measures_energy:
+            self.layer.observe(remote_energy(self.simulator.scenario.params, state),
+                               motor_speed_integral(state))
 
     def step(self, raw: np.ndarray) -> tuple[StepResult, Projection]:
         """Project ``raw`` and simulate one control period with the applied gains.
@@ -99,14 +104,13 @@ class CertifiedLoop:
         """
         simulator = self.simulator
         raw = np.asarray(raw, dtype=np.float64).reshape(simulator.batch, -1)
-        projection = self.layer.project_batch(raw, self._applied)
+        projection = self.layer.step(raw)
         applied = projection.action
         unsafe = ~self.layer.contains(applied)
         self.unsafe_by_run += unsafe
         self.unsafe_actions += int(np.count_nonzero(unsafe))
-        self._applied = applied
         result = simulator.advance(applied)
-        self.layer.observe(result.state[-1])
+        self._measure(result.state[-1])
         return result, projection
 
     def run(self, simulator: Simulator, raw: np.ndarray) -> tuple[Trajectory, np.ndarray]:

@@ -29,10 +29,8 @@ import numpy as np
 from numba import njit
 
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.certification.nuno.lyapunov import ScheduledStorage
-from teleopkit.model.params import plant_params
+from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer, kkt_polish
-from teleopkit.sim.state import StateLayout
 
 __all__ = ["BUDGET", "TANK", "ScheduleLayer", "project_scheduled"]
 
@@ -178,40 +176,37 @@ def project_scheduled(raw: np.ndarray, out: np.ndarray, flags: np.ndarray, dista
 class ScheduleLayer(SafetyLayer):
     """The safety layer of a scheduled class: the step's coupled set and its run-time state.
 
-    Every call of :meth:`project_batch` is one control step of an episode: it projects onto the
-    set of that step (the common shape, the box, the cone and the floor on ``kappa``) and spends
-    the budget or the tank. :meth:`reset` starts an episode; with a tank, :meth:`observe` takes
-    the plant's states at every sample (remote energy and dissipation). Build it with
-    :meth:`SafetyLayer.from_certificate`.
+    Every :meth:`step` is one control step of an episode: it projects onto the set of that step
+    (the common shape, the box, the cone and the floor on ``kappa``) and spends the budget or
+    the tank. :meth:`reset` starts an episode; with a tank, :meth:`observe` takes the measured
+    remote energy and motor speeds at every sample. Build it with
+    :func:`~teleopkit.safety.factory.layer_for`.
 
     Parameters
     ----------
     certificate : GainCertificate
-        A certified ``scheduled:L`` or ``tank`` certificate.
+        A ``scheduled:L`` or ``tank`` certificate whose set is certified.
     tol : float
         Tolerance of the active-constraint report.
     """
 
-    stateful = True
-
     def __init__(self, certificate: GainCertificate, tol: float = 1e-9) -> None:
-        variation = certificate.variation
-        if not variation.scheduled:
+        allowed = certificate.scheduled_set
+        if allowed is None:
             raise ValueError(f"a schedule layer needs a scheduled:L or tank certificate, not "
-                             f"{variation}")
+                             f"{certificate.gain_variation}")
+        if allowed.is_empty:
+            raise ValueError("the certificate's common-shape set is empty")
+        if not np.all(certificate.polytope.contains(allowed.corners())):
+            raise ValueError("the certificate's scheduled set is not inside its polytope")
         self.certificate = certificate
         self.polytope = certificate.polytope
+        self.scheduled = allowed
         self.tol = float(tol)
-        self.max_step = None
-        self._qp: dict[bool, tuple[Any, Any, Any, Any]] = {}
-        self.storage = ScheduledStorage.from_details(certificate.details["storage"])
-        self._params = plant_params(certificate.plant)
-        self._set = _step_set(certificate, self.storage)
-        self._mode = BUDGET if variation.kind == "scheduled" else TANK
-        self._initial = variation.value
-        self._refill = float(certificate.details.get("refill") or 0.0)
-        self._centre = _centre(self._set)
-        n = len(self.storage.shape)
+        self._set = (*allowed.arrays(), allowed.kappa_low, allowed.kappa_high)
+        self._mode = TANK if allowed.rule == "tank" else BUDGET
+        self._centre = allowed.centre()
+        n = allowed.n_joints
         self._scratch = (np.empty(n), np.empty(n, dtype=np.int64))
         self._labels = ("kappa >= floor (budget or tank)", "kappa >= min", "kappa <= max",
                         *(f"B_r{i + 1} >= min" for i in range(n)),
@@ -221,61 +216,61 @@ class ScheduleLayer(SafetyLayer):
         self.reset()
 
     @property
-    def mode(self) -> int:
-        """:data:`BUDGET` or :data:`TANK`."""
-        return self._mode
+    def measures_energy(self) -> bool:  # type: ignore[override]
+        """Whether the layer is paid from a tank (then :meth:`observe` needs the energy)."""
+        return self._mode == TANK
 
     @property
-    def step_set(self) -> tuple[Any, ...]:
-        """The static set: ``(shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi)``.
-
-        The cone is ``B_r^i >= rho_i shape_i kappa + beta_i``; the step's set adds the floor on
-        ``kappa`` from the run-time state.
-        """
-        return self._set
+    def admissible_set(self) -> ScheduledSet:
+        """The class's static set (the step's set adds the floor on ``kappa``)."""
+        return self.scheduled
 
     @property
     def labels(self) -> tuple[str, ...]:
         """The constraints of :attr:`Projection.active`: floor, interval, damping box, cones."""
         return self._labels
 
+    @property
+    def fallback_action(self) -> np.ndarray:
+        """The interior action applied at a first step whose raw action is not finite."""
+        return self._centre.copy()
+
     def reset(self) -> None:
         """Start an episode: full budget or initial tank, no previous action."""
         self._prev: np.ndarray | None = None
-        self._last: np.ndarray | None = None
         self._level = np.zeros(0)
         self._energy = np.zeros(0)
-        self._dissipated = np.zeros((0, len(self.storage.shape)))
+        self._integral = np.zeros((0, self.scheduled.n_joints))
         self.last_floor = np.zeros(0)
 
     def _start(self, batch: int) -> None:
-        n = len(self.storage.shape)
-        self._prev = np.full((batch, 2 * n), np.nan)
-        self._level = np.full(batch, self._initial)
+        self._prev = np.full((batch, self.dimension), np.nan)
+        self._level = np.full(batch, self.scheduled.initial)
         if self._energy.shape != (batch,):
             self._energy = np.zeros(batch)
-            self._dissipated = np.zeros((batch, n))
+            self._integral = np.zeros((batch, self.scheduled.n_joints))
 
-    def observe(self, state: np.ndarray) -> None:
-        """Measure the remote energy and refill the tank with the proven dissipation.
+    def observe(self, energy: np.ndarray, motor_speed_integral: np.ndarray) -> None:
+        """Take the measured remote energy and refill the tank with the proven dissipation.
 
         Parameters
         ----------
-        state : ndarray, shape (B, 12 n)
-            The plant's states at the sample (the energy integrals of
-            :class:`~teleopkit.sim.state.StateLayout` give the dissipation since the last one).
+        energy : ndarray, shape (B,)
+            The remote arm's stored energy ``E_r`` in joules at the sample.
+        motor_speed_integral : ndarray, shape (B, n)
+            ``int_0^t theta_i'^2`` of each motor; its increase since the last sample, weighted
+            by the proven dissipation rates of the gains applied over it, refills the tank.
         """
         if self._mode != TANK:
             return
-        state = np.asarray(state, dtype=float)
-        integral = StateLayout.of(state).get(state, "int_dtheta2")
-        if self._prev is not None and self._prev.shape[0] == state.shape[0]:
+        integral = np.asarray(motor_speed_integral, dtype=float)
+        if self._prev is not None and self._prev.shape[0] == integral.shape[0]:
             applied = np.all(np.isfinite(self._prev), axis=1)
-            rates = self.storage.dissipation_rates(np.nan_to_num(self._prev, nan=1.0))
-            gained = np.sum(rates * (integral - self._dissipated), axis=1)
-            self._level = self._level + np.where(applied, self._refill * gained, 0.0)
-        self._energy = self.storage.remote_energy(self._params, state)
-        self._dissipated = integral
+            rates = self.scheduled.dissipation_rates(np.nan_to_num(self._prev, nan=1.0))
+            gained = np.sum(rates * (integral - self._integral), axis=1)
+            self._level = self._level + np.where(applied, self.scheduled.refill * gained, 0.0)
+        self._energy = np.asarray(energy, dtype=float)
+        self._integral = integral
 
     def run_time_state(self, batch: int) -> np.ndarray:
         """What the step's set depends on, beside the plant: the agent observes it.
@@ -290,14 +285,14 @@ class ScheduleLayer(SafetyLayer):
         ndarray, shape (B, 2) or (B, 3)
             The budget left or the tank level, the previous ``kappa`` (``kappa_min`` before the
             first step: then no floor applies) and, with a tank, the measured remote energy
-            ``E_r``: the step's floor follows from them (:attr:`mode`).
+            ``E_r``: the step's floor follows from them.
         """
         started = self._prev is not None and self._prev.shape[0] == batch
-        level = self._level if started else np.full(batch, self._initial)
-        kappa = self._set[5] * np.ones(batch)
+        level = self._level if started else np.full(batch, self.scheduled.initial)
+        kappa = np.full(batch, self.scheduled.kappa_low)
         if started:
-            kappa = np.where(np.isfinite(self._prev[:, 0]), self._prev[:, 0] / self._set[0][0],
-                             kappa)
+            kappa = np.where(np.isfinite(self._prev[:, 0]),
+                             self.scheduled.kappa(self._prev), kappa)
         columns = [level, kappa]
         if self._mode == TANK:
             columns.append(self._energy if self._energy.shape == (batch,) else np.zeros(batch))
@@ -319,34 +314,8 @@ class ScheduleLayer(SafetyLayer):
         """
         inside = self.polytope.contains(actions)
         if inside.shape == self._level.shape:
-            inside = inside & (self._level >= -self.tol * (1.0 + abs(self._initial)))
+            inside = inside & (self._level >= -self.tol * (1.0 + abs(self.scheduled.initial)))
         return inside
-
-    @property
-    def fallback_action(self) -> np.ndarray:
-        """The interior action applied at a first step whose raw action is not finite."""
-        return self._centre.copy()
-
-    def project(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
-        """One control step of a single scenario (see :meth:`project_batch`).
-
-        Parameters
-        ----------
-        raw : ndarray, shape (2 n,)
-            Raw action; NaN and inf are allowed.
-        prev : ndarray, shape (2 n,), optional
-            The action applied at the previous step, if given (it must be the layer's own).
-
-        Returns
-        -------
-        Projection
-            The applied action and what the layer did.
-        """
-        result = self.project_batch(np.reshape(raw, (1, -1)),
-                                    None if prev is None else np.reshape(prev, (1, -1)))
-        return Projection(result.action[0], float(result.distance[0]), result.active[0],
-                          result.rate_active[0], FLAGS[result.fallback[0]],
-                          float(result.schedule[0]))
 
     def project_set(self, raw: np.ndarray) -> np.ndarray:
         """The nearest points of the static set (the first step's set), leaving the state alone.
@@ -368,70 +337,62 @@ class ScheduleLayer(SafetyLayer):
         project_scheduled(flat, out, np.empty(count, dtype=np.int64), np.empty(count),
                           np.empty(count), np.empty((count, len(self.labels)), dtype=np.bool_),
                           self.tol, *self._set, np.full_like(flat, np.nan),
-                          np.full(count, self._initial), np.zeros(count), self._mode,
-                          self._refill, self._centre, *self._scratch)
+                          np.full(count, self.scheduled.initial), np.zeros(count), self._mode,
+                          self.scheduled.refill, self._centre, *self._scratch)
         return out.reshape(raw.shape)
 
-    def project_batch(self, raw: np.ndarray, prev: np.ndarray | None = None) -> Projection:
-        """One control step of a batch: project onto the step's set, spend the budget or tank.
+    def step(self, raw: np.ndarray) -> Projection:
+        """One control step: project onto the step's set and spend the budget or the tank.
 
         Parameters
         ----------
-        raw : ndarray, shape (B, 2 n)
-            Raw actions; NaN and inf are allowed (the previous action is applied again).
-        prev : ndarray, shape (B, 2 n), optional
-            The actions applied at the previous step, if given: they must be the layer's own
-            (it keeps them; a different history would void the budget).
+        raw : ndarray, shape (B, 2 n) or (2 n,)
+            Raw actions; NaN and inf are allowed (the previous action is applied again, or the
+            centre of the set at the first step).
 
         Returns
         -------
         Projection
             Applied actions, distances, active constraints (:attr:`labels`), flags and the
-            budget or tank left.
+            budget or tank left (scalars for one action).
 
         Raises
         ------
         ValueError
-            On a batch size other than the episode's or a ``prev`` that is not the layer's.
+            On a batch size other than the episode's (call :meth:`reset` to start another).
         """
-        raw = np.atleast_2d(raw)
-        shape = (raw.shape[0], self.dimension)
-        raw = self._actions(raw, shape, "raw actions")
+        raw = np.asarray(raw, dtype=np.float64)
+        single = raw.ndim == 1
+        flat = np.atleast_2d(raw)
+        shape = (flat.shape[0], self.dimension)
+        flat = self._actions(flat, shape, "raw actions")
         if self._prev is None:
-            if prev is not None:
-                raise ValueError("the schedule layer starts an episode without a previous "
-                                 "action; call reset() and pass none")
             self._start(shape[0])
         assert self._prev is not None
         if self._prev.shape != shape:
             raise ValueError(f"the episode has {self._prev.shape[0]} scenarios, got "
                              f"{shape[0]}; call reset() to start another")
-        if prev is not None and not (_same(prev, self._last)
-                                     or np.array_equal(prev, self._prev, equal_nan=True)):
-            raise ValueError("prev is not the action this layer applied last; it keeps its own "
-                             "history (call reset() to start an episode)")
         out = np.empty(shape)
         flags = np.empty(shape[0], dtype=np.int64)
         distance = np.empty(shape[0])
         self.last_floor = np.empty(shape[0])
         active = np.empty((shape[0], len(self.labels)), dtype=np.bool_)
-        project_scheduled(raw, out, flags, distance, self.last_floor, active, self.tol,
+        project_scheduled(flat, out, flags, distance, self.last_floor, active, self.tol,
                           *self._set, self._prev, self._level, self._energy, self._mode,
-                          self._refill, self._centre, *self._scratch)
-        self._last = out
+                          self.scheduled.refill, self._centre, *self._scratch)
+        if single:
+            return Projection(out[0], float(distance[0]), active[0], np.zeros(self.dimension,
+                              dtype=bool), FLAGS[flags[0]], float(self._level[0]))
         return Projection(out, distance, active, np.zeros(shape, dtype=bool), flags,
                           self._level.copy())
 
-    def project_qp(self, raw: np.ndarray, prev: np.ndarray | None = None,
-                   floor: float = 0.0) -> np.ndarray:
+    def project_qp(self, raw: np.ndarray, floor: float = 0.0) -> np.ndarray:
         """Solve the step's projection QP with cvxpy and Clarabel (reference for the kernel).
 
         Parameters
         ----------
         raw : ndarray, shape (2 n,)
             Raw action (finite).
-        prev : ndarray, shape (2 n,), optional
-            Unused (the floor carries the history).
         floor : float
             The step's floor on ``kappa`` (for example ``last_floor`` of a step).
 
@@ -446,7 +407,7 @@ class ScheduleLayer(SafetyLayer):
         floor_row = np.zeros(self.dimension)
         floor_row[0] = -1.0
         g = np.vstack([self.polytope.G, floor_row])
-        h = np.append(self.polytope.h, -self.storage.shape[0] * floor)
+        h = np.append(self.polytope.h, -self.scheduled.shape[0] * floor)
         a = cp.Variable(self.dimension)
         problem = cp.Problem(cp.Minimize(cp.sum_squares(a - raw)), [g @ a <= h])
         problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
@@ -455,43 +416,3 @@ class ScheduleLayer(SafetyLayer):
         approx = np.asarray(a.value, dtype=float)
         exact = kkt_polish(g, h, raw, approx)
         return approx if exact is None else exact
-
-
-def _same(prev: np.ndarray, last: np.ndarray | None) -> bool:
-    """Whether ``prev`` is (a view of) the array the layer returned last."""
-    return last is not None and (prev is last or prev.base is last)
-
-
-def _step_set(certificate: GainCertificate, storage: ScheduledStorage) -> tuple[Any, ...]:
-    """The kernel's static arguments: shape, cone slope and offset, damping box, kappa range.
-
-    The cone is read from the polytope's closed-form rows (``G_K K + G_B B <= h`` is
-    ``B >= rho K + h / G_B``), so the layer enforces exactly the set the certificate states.
-    """
-    box, polytope = certificate.box, certificate.polytope
-    n = box.n_joints
-    shape, rho = np.array(storage.shape), np.array(storage.cone)
-    beta = np.zeros(n)
-    for i in range(n):
-        rows = [r for r, label in enumerate(polytope.labels) if label.startswith(f"Nuño joint "
-                                                                                 f"{i + 1}:")]
-        if len(rows) != 1:
-            raise ValueError(f"the certificate's polytope has no closed-form row for joint {i + 1}")
-        g, h = polytope.G[rows[0]], polytope.h[rows[0]]
-        if not math.isclose(-g[i] / g[n + i], rho[i], rel_tol=1e-9):
-            raise ValueError(f"the certificate's cone of joint {i + 1} does not match its storage")
-        beta[i] = h / g[n + i]
-    b_lo, b_hi = box.lower[n:], box.upper[n:]
-    kappa_lo = float(np.max(box.lower[:n] / shape))
-    kappa_hi = float(np.min(np.minimum(box.upper[:n] / shape, (b_hi - beta) / (rho * shape))))
-    if kappa_lo > kappa_hi:
-        raise ValueError("the certificate's common-shape set is empty")
-    return shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi
-
-
-def _centre(step: tuple[Any, ...]) -> np.ndarray:
-    """An interior action: mid ``kappa`` and mid damping of the cone at that ``kappa``."""
-    shape, rho, beta, b_lo, b_hi, kappa_lo, kappa_hi = step
-    kappa = 0.5 * (kappa_lo + kappa_hi)
-    low = np.maximum(b_lo, rho * shape * kappa + beta)
-    return np.concatenate([kappa * shape, 0.5 * (low + b_hi)])

@@ -23,7 +23,7 @@ from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
-__all__ = ["ASSUMPTIONS", "RATIO_CAVEAT", "certify_closed_form", "nuno_delay_margin",
+__all__ = ["ASSUMPTIONS", "NUNO_EPS", "RATIO_CAVEAT", "certify_closed_form", "nuno_delay_margin",
            "nuno_joint_margins", "nuno_polytope", "nuno_slack", "weakest_first", "worst_vertex"]
 
 ASSUMPTIONS = (
@@ -39,6 +39,10 @@ RATIO_CAVEAT = (
     "plant, checked on the linearisation by LMI covers and on the nonlinear plant by "
     "falsification only")
 """Added to a frozen closed-form certificate whose box allows different per-joint ratios."""
+
+NUNO_EPS = 1e-6
+"""Slack ``eps`` of the strict inequality in the certified polytope,
+``4 B_l B_r >= (T_l* + T_r*)^2 K_l K_r + eps`` (robust to rounding)."""
 
 
 def _gain_products(params: TeleoperatorParams,
@@ -74,7 +78,7 @@ def nuno_slack(params: TeleoperatorParams, actions: np.ndarray, tl_max: float,
 
 
 def nuno_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                  eps: float = 1e-6) -> GainPolytope:
+                  eps: float = NUNO_EPS) -> GainPolytope:
     """Gains of ``box`` that satisfy the closed-form condition with slack at least ``eps``.
 
     Parameters

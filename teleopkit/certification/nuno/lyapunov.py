@@ -48,8 +48,8 @@ import numpy as np
 
 from teleopkit.certification.delay_bounds import check_delay_bounds
 from teleopkit.delays.history import hermite
-from teleopkit.model.dynamics import kinetic_energy, remote_energy
-from teleopkit.model.params import TeleoperatorParams, Wall
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.sim.energy import local_energy, remote_energy
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.trajectory import Trajectory
 
@@ -163,50 +163,6 @@ class ScheduledStorage:
         n = len(self.shape)
         return gains[..., n:] / self.kappa(gains)[..., None] - np.array(self.shape) * self.cone
 
-    def remote_energy(self, params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
-        """``E_r``: the remote arm's stored energy (links, rotors, springs, environment).
-
-        Parameters
-        ----------
-        params : TeleoperatorParams
-            Teleoperator.
-        state : ndarray, shape (..., 12 n)
-            States.
-
-        Returns
-        -------
-        ndarray, shape (...)
-            The energy in joules.
-        """
-        layout = StateLayout.of(state)
-        qr = layout.get(state, "qr")
-        energy = remote_energy(params.remote_arm, params.joints, qr, layout.get(state, "dqr"),
-                               layout.get(state, "theta"), layout.get(state, "dtheta"))
-        if isinstance(params.environment, Wall):
-            depth = np.maximum(0.0, qr - np.array(params.environment.position))
-            energy = energy + 0.5 * params.environment.stiffness * np.sum(depth**2, axis=-1)
-        return energy
-
-    def local_energy(self, params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
-        """``E_l``: the local arm's kinetic energy and the operator spring's (reference at 0).
-
-        Parameters
-        ----------
-        params : TeleoperatorParams
-            Teleoperator.
-        state : ndarray, shape (..., 12 n)
-            States.
-
-        Returns
-        -------
-        ndarray, shape (...)
-            The energy in joules.
-        """
-        layout = StateLayout.of(state)
-        ql = layout.get(state, "ql")
-        spring = 0.5 * params.operator.stiffness * np.sum(ql**2, axis=-1)
-        return kinetic_energy(params.local_arm, ql, layout.get(state, "dql")) + spring
-
     def value(self, params: TeleoperatorParams, trajectory: Trajectory) -> np.ndarray:
         """``V`` at every recorded time, just after the sample (with the next period's gains).
 
@@ -239,8 +195,8 @@ class ScheduledStorage:
                                    layout.get(state, "iint_dtheta2"), self.tr_max) / (2 * weights)
                    + double_integral(trajectory.t, layout.get(state, "int_dql2"),
                                      layout.get(state, "iint_dql2"), self.tl_max) * weights / 2)
-        return (self.local_energy(params, state) / self.normaliser
-                + self.remote_energy(params, state) / self.kappa(following)
+        return (local_energy(params, state) / self.normaliser
+                + remote_energy(params, state) / self.kappa(following)
                 + 0.5 * np.sum(shape * stretch**2, axis=-1) + np.sum(shape * delayed, axis=-1))
 
 

@@ -18,11 +18,12 @@ import numpy as np
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.nuno.condition import nuno_joint_margins, nuno_polytope
+from teleopkit.certification.nuno.condition import NUNO_EPS, nuno_joint_margins, nuno_polytope
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
+from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
-__all__ = ["TANK_REFILL", "certify_scheduled", "kappa_range", "shape_rows"]
+__all__ = ["TANK_REFILL", "certify_scheduled", "scheduled_set", "shape_rows"]
 
 TANK_REFILL = 0.5
 """Fraction of the proven dissipation that refills the tank (and of the storage released when
@@ -37,26 +38,39 @@ _COMMON = (
 )
 
 
-def kappa_range(storage: ScheduledStorage, box: GainBox) -> tuple[float, float]:
-    """The values of ``kappa`` whose common-shape stiffness lies in the box and the cone.
+def scheduled_set(params: TeleoperatorParams, storage: ScheduledStorage, box: GainBox,
+                  variation: GainVariation) -> ScheduledSet:
+    """The set a scheduled class allows inside a box: common shape, box and the closed form's cone.
 
     Parameters
     ----------
+    params : TeleoperatorParams
+        Teleoperator (its local damping gives the cone's offset).
     storage : ScheduledStorage
-        Shape and cone.
+        Shape and cone of the plant and delay bounds.
     box : GainBox
         Remote gain ranges.
+    variation : GainVariation
+        ``scheduled:L`` or ``tank[:T0]``.
 
     Returns
     -------
-    tuple of float
-        ``(kappa_min, kappa_max)``; empty when ``kappa_min > kappa_max``.
+    ScheduledSet
+        The set: the closed form's row ``4 B_l B_r >= (T_l* + T_r*)^2 K_l K_r + eps`` is the cone
+        ``B_r >= rho K_r + eps / (4 B_l)``; empty when no common-shape stiffness of the box lies
+        in it.
     """
+    n = box.n_joints
     shape, cone = np.array(storage.shape), np.array(storage.cone)
-    low = float(np.max(box.lower[:box.n_joints] / shape))
-    high = float(np.min(np.minimum(box.upper[:box.n_joints] / shape,
-                                   box.upper[box.n_joints:] / (cone * shape))))
-    return low, high
+    offset = NUNO_EPS / (4 * np.array(params.local_gains.damping))
+    high = box.upper[n:]
+    kappa_high = np.minimum(box.upper[:n] / shape, (high - offset) / (cone * shape))
+    tank = variation.kind == "tank"
+    return ScheduledSet(tuple(shape.tolist()), tuple(cone.tolist()), tuple(offset.tolist()),
+                        tuple(box.lower[n:].tolist()), tuple(high.tolist()),
+                        float(np.max(box.lower[:n] / shape)), float(np.min(kappa_high)),
+                        "tank" if tank else "budget", float(variation.value),
+                        TANK_REFILL if tank else 0.0)
 
 
 def shape_rows(shape: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
@@ -107,16 +121,16 @@ def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, t
     if not variation.scheduled:
         raise ValueError(f"certify_scheduled covers scheduled:L and tank, not {variation}")
     storage = ScheduledStorage.for_plant(params, tl_max, tr_max)
-    low, high = kappa_range(storage, box)
-    box_high = float(np.min(box.upper[:box.n_joints] / np.array(storage.shape)))
-    polytope = nuno_polytope(params, box, tl_max, tr_max).intersect(*shape_rows(storage.shape))
+    allowed = scheduled_set(params, storage, box, variation)
     n = box.n_joints
+    box_high = float(np.min(box.upper[:n] / np.array(storage.shape)))
+    polytope = nuno_polytope(params, box, tl_max, tr_max).intersect(*shape_rows(storage.shape))
     worst = np.concatenate([box_high * np.array(storage.shape), box.lower[n:]])
     margins = nuno_joint_margins(params, worst)
     in_cone = box.lower[n:] >= np.array(storage.cone) * worst[:n]
-    certified = bool(low <= box_high and np.all(in_cone))
+    certified = bool(allowed.kappa_low <= box_high and np.all(in_cone))
     violation = None
-    if low > box_high:
+    if allowed.kappa_low > box_high:
         violation = "no common-shape stiffness K_r = kappa K_l / K_l^1 lies in the box"
     elif not certified:
         i = int(np.argmin(in_cone))
@@ -127,9 +141,8 @@ def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, t
                  "guarantee: V(t) + tank(t) <= V(0) + T0 for the storage V of "
                  "teleopkit.certification.nuno.lyapunov (falls of kappa paid from the measured "
                  "remote energy)")
-    details = {"storage": asdict(storage), "kappa_range": [low, high],
-               "refill": TANK_REFILL if variation.kind == "tank" else None}
+    details = {"storage": asdict(storage), "set": allowed.to_dict()}
     return GainCertificate(certified, "nuno", str(variation), (tl_max, tr_max),
-                           float(margins.min()), box, polytope, low <= high,
+                           float(margins.min()), box, polytope, not allowed.is_empty,
                            (*_COMMON, guarantee), violation, details,
                            plant_record(params))
