@@ -28,7 +28,7 @@ def _method_names(method: str) -> tuple[str, ...]:
 
 
 def _problems(system: PolytopicDelaySystem, method: str, mu: float | None,
-              lower: tuple[float, ...], channels: str, retry: str = "always"
+              lower: tuple[float, ...], channels: str, retry: str = "always", threads: int = 0
               ) -> list[LMIProblem]:
     """The problems to try: each method, in each channel form (``"auto"``: both if they differ).
 
@@ -41,7 +41,7 @@ def _problems(system: PolytopicDelaySystem, method: str, mu: float | None,
         modes = (channels,)
     else:
         raise ValueError(f"channels must be auto, {', '.join(MODES)}; got {channels!r}")
-    return [LMIProblem(system, get_method(name), mu, lower, mode, retry)
+    return [LMIProblem(system, get_method(name), mu, lower, mode, retry, threads)
             for name in _method_names(method) for mode in modes]
 
 
@@ -65,6 +65,7 @@ def certify_delay(
     lower: float | Sequence[float] = 0.0,
     channels: str = "auto",
     retry: str = "always",
+    threads: int = 0,
 ) -> Certificate:
     """Certify stability for given delay bounds, ``lower_i <= tau_i(t) <= h_i``.
 
@@ -90,6 +91,8 @@ def certify_delay(
     retry : {"always", "accurate"}, optional
         When a failed solve is tried again in balanced coordinates
         (:class:`~certify.solve.LMIProblem`).
+    threads : int, optional
+        Most threads of the solver's linear algebra (0, the default: the solver's choice).
 
     Returns
     -------
@@ -106,7 +109,7 @@ def certify_delay(
     low = _checked_lower(lower, bounds)
     mu = check_mu(mu)
     cert: Certificate | None = None
-    for problem in _problems(poly, method, mu, low, channels, retry):
+    for problem in _problems(poly, method, mu, low, channels, retry, threads):
         cert = problem.solve(bounds)
         if cert.certified:
             break
@@ -208,6 +211,7 @@ def max_delay_certificate(
     rtol: float = 1e-3,
     channels: str = "auto",
     h_min: float = 0.0,
+    threads: int = 0,
 ) -> Certificate:
     """Largest certified delay bound by bisection, with its certificate.
 
@@ -238,6 +242,8 @@ def max_delay_certificate(
         this scale is tried next and, if it fails too, 0 is returned at once (default 0: the
         search then narrows to 1e-9 of the system's time scale, some thirty solves when
         nothing is certified).
+    threads : int, optional
+        Most threads of the solver's linear algebra (0, the default: the solver's choice).
 
     Returns
     -------
@@ -255,7 +261,7 @@ def max_delay_certificate(
     low = lower_bounds(lower, poly.m)
     guess = _initial_guess(poly)
     results = [_bisect(problem, w, guess, h_max, rtol, h_min)
-               for problem in _problems(poly, method, mu, low, channels)]
+               for problem in _problems(poly, method, mu, low, channels, threads=threads)]
     return max(results, key=lambda c: c.margin or 0.0)
 
 
@@ -270,6 +276,7 @@ def max_delay(
     rtol: float = 1e-3,
     channels: str = "auto",
     h_min: float = 0.0,
+    threads: int = 0,
 ) -> float:
     """Largest common delay bound ``h`` certified for every delay (``lower <= tau_i(t) <= h``).
 
@@ -296,6 +303,8 @@ def max_delay(
         Channel forms tried (:func:`max_delay_certificate`).
     h_min : float, optional
         Smallest bound above ``lower`` worth searching (:func:`max_delay_certificate`).
+    threads : int, optional
+        Most threads of the solver's linear algebra (0, the default: the solver's choice).
 
     Returns
     -------
@@ -303,5 +312,5 @@ def max_delay(
         The certified bound (``0.0`` if none).
     """
     cert = max_delay_certificate(system, method, mu, weights=weights, h_max=h_max, rtol=rtol,
-                                 lower=lower, channels=channels, h_min=h_min)
+                                 lower=lower, channels=channels, h_min=h_min, threads=threads)
     return float(cert.margin or 0.0)

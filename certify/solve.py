@@ -20,10 +20,9 @@ from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_boun
 from certify.system import PolytopicDelaySystem
 from certify.system_data import SystemData, system_data
 
-__all__ = ["RETRIES", "SHARED_FORMS", "LMIProblem", "set_solver_threads", "solver_threads"]
+__all__ = ["RETRIES", "SHARED_FORMS", "LMIProblem", "check_threads"]
 
 SOLVER = "CLARABEL"
-_SETTINGS: dict[str, int] = {}
 MARGIN_CAP = 1e-4
 """Margin ``t`` beyond which the solver stops improving. A clearly feasible problem then has a
 large optimal face, whose analytic centre interior-point methods reach in few iterations;
@@ -31,33 +30,27 @@ without the cap the Finsler slack drifts along an unbounded optimal face and the
 end ``optimal_inaccurate`` although the LMIs are comfortably feasible."""
 
 
-def set_solver_threads(threads: int) -> None:
-    """Cap the threads of Clarabel's linear algebra in this process (0: Clarabel's default).
+def check_threads(threads: int) -> int:
+    """``threads`` as a thread cap of Clarabel's linear algebra (0: Clarabel's default).
 
     Parameters
     ----------
     threads : int
-        Most threads per solve; processes that solve side by side should share the cores.
+        Most threads per solve; solves that run side by side should share the cores.
+
+    Returns
+    -------
+    int
+        The cap.
 
     Raises
     ------
     ValueError
         If ``threads`` is negative.
     """
-    if threads < 0:
+    if int(threads) != threads or threads < 0:
         raise ValueError(f"threads must be 0 (automatic) or positive, got {threads}")
-    _SETTINGS["max_threads"] = int(threads)
-
-
-def solver_threads() -> int:
-    """Thread cap of Clarabel's linear algebra in this process (0: Clarabel's default).
-
-    Returns
-    -------
-    int
-        The cap set by :func:`set_solver_threads`.
-    """
-    return _SETTINGS.get("max_threads", 0)
+    return int(threads)
 
 
 def _system_text(system: PolytopicDelaySystem) -> str:
@@ -122,8 +115,8 @@ class _Form:
         data = system_data(self.method, system, self.channels, self.mu)
         return data if data.structure() == self.structure else None
 
-    def solve(self, system: PolytopicDelaySystem, data: SystemData, bounds: tuple[float, ...]
-              ) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
+    def solve(self, system: PolytopicDelaySystem, data: SystemData, bounds: tuple[float, ...],
+              threads: int = 0) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
         """Status, decision matrices and numpy residuals (empty unless optimal with ``t > 0``)."""
         if self.shared:
             self.data.assign(data)
@@ -135,7 +128,8 @@ class _Form:
                 warnings.simplefilter("ignore", UserWarning)
                 # a fresh solver: updating the last one's data keeps its equilibration, which
                 # is wrong for another system (a badly scaled one then spoils the next)
-                self.problem.solve(solver=SOLVER, warm_start=False, **_SETTINGS)
+                self.problem.solve(solver=SOLVER, warm_start=False,
+                                   **({"max_threads": threads} if threads else {}))
             status = str(self.problem.status)
         except cp.SolverError as exc:
             status = f"solver_error: {exc}"
@@ -215,10 +209,10 @@ class _Posed:
             form = _Form(scaled, method, mu, channels, data, shared=False)
         return cls(form, scaled, data, scaling)
 
-    def solve(self, bounds: tuple[float, ...]
+    def solve(self, bounds: tuple[float, ...], threads: int = 0
               ) -> tuple[str, dict[str, np.ndarray], dict[str, float]]:
         """:meth:`_Form.solve` for this system."""
-        return self.form.solve(self.system, self.data, bounds)
+        return self.form.solve(self.system, self.data, bounds, threads)
 
 
 def _value(var: cp.Variable) -> np.ndarray:
@@ -258,14 +252,18 @@ class LMIProblem:
         re-check failed. A solve that ends ``optimal_inaccurate`` on a well scaled system is
         rarely rescued by balancing; a caller that can split a failed problem instead (a
         cover's cells) saves the second solve.
+    threads : int, optional
+        Most threads of Clarabel's linear algebra per solve (0, the default: Clarabel's own
+        choice, every core); solves that run side by side should share the cores.
     """
 
     def __init__(self, system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
                  lower: float | Sequence[float] = 0.0, channels: str = "reduced",
-                 retry: str = "always") -> None:
+                 retry: str = "always", threads: int = 0) -> None:
         if retry not in RETRIES:
             raise ValueError(f"retry must be one of {', '.join(RETRIES)}, got {retry!r}")
         self.retry = retry
+        self.threads = check_threads(threads)
         self.system = system
         self.lower = lower_bounds(lower, system.m)
         self.method = method.with_lower(self.lower)
@@ -318,12 +316,12 @@ class LMIProblem:
             raise ValueError(f"delay bounds {list(bounds)} must be {self.system.m} values, each "
                              f"at least its lower bound {list(self.lower)}")
         form = self._forms[0]
-        status, matrices, res = form.solve(bounds)
+        status, matrices, res = form.solve(bounds, self.threads)
         certified = bool(res) and all(r >= RTOL for r in res.values())
         skip = certified or (self.retry == "accurate" and status != cp.OPTIMAL)
         balanced = None if skip else self._balanced()
         if balanced is not None:
-            outcome = balanced.solve(bounds)
+            outcome = balanced.solve(bounds, self.threads)
             if outcome[2] and all(r >= RTOL for r in outcome[2].values()):
                 form, (status, matrices, res), certified = balanced, outcome, True
         scaled = not np.all(form.scaling == 1.0)

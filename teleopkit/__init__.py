@@ -15,9 +15,8 @@ so ``import teleopkit`` stays fast; it also registers the Gymnasium id
 """
 
 from teleopkit._lazy import lazy_namespace
+from teleopkit._version import __version__ as __version__
 from teleopkit.rl.registration import register
-
-__version__ = "0.1.0"
 
 _EXPORTS = {
     **{name: "model.params" for name in (

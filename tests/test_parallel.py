@@ -10,7 +10,7 @@ import textwrap
 
 import pytest
 
-from teleopkit.certification.lmi.workers import map_solves, workers
+from teleopkit.certification.lmi.workers import map_solves, using_workers, workers
 
 SCRIPT = """
 import ast
@@ -51,14 +51,12 @@ def test_a_guarded_script_uses_the_workers(tmp_path):
 THREADS_SCRIPT = """
 from threadpoolctl import threadpool_info
 
-from certify.solve import solver_threads
-
-def blas_threads(_):
-    return max(pool["num_threads"] for pool in threadpool_info()), solver_threads()
+def blas_threads(_, threads=0):
+    return max(pool["num_threads"] for pool in threadpool_info()), threads
 
 if __name__ == "__main__":
     from teleopkit.certification.lmi.workers import map_solves
-    print(map_solves(blas_threads, [(k,) for k in range(4)]))
+    print(map_solves(blas_threads, [(k,) for k in range(4)], share_cores=True))
 """
 
 
@@ -88,7 +86,8 @@ STARTER = """
 from teleopkit.certification.lmi import workers as parallel
 if __name__ == "__main__":
     parallel.start_workers()
-    print("started", sorted(len(pool._processes) for pool in parallel._POOL.values()))
+    print("started", [len(parallel._Pool.executor._processes)] if parallel._Pool.executor
+          else [])
     print(parallel.map_solves(pow, [(2, 3), (3, 2)]))
 """
 
@@ -102,3 +101,36 @@ def test_workers_start_before_the_first_solves(tmp_path, count, started):
                           check=False)
     assert done.returncode == 0, done.stderr
     assert f"started {started}" in done.stdout and "[8, 9]" in done.stdout
+
+
+def test_an_explicit_count_overrides_the_environment(monkeypatch):
+    monkeypatch.setenv("TELEOPKIT_WORKERS", "3")
+    with using_workers(1):
+        assert workers() == 1
+        with using_workers(None):
+            assert workers() == 3
+    assert workers() == 3
+    with pytest.raises(ValueError, match="workers must be at least 1"), using_workers(0):
+        pass
+
+
+ONE_POOL = """
+from teleopkit.certification.lmi import workers as parallel
+if __name__ == "__main__":
+    print(parallel.map_solves(pow, [(2, 3), (3, 2)]))
+    first = parallel._Pool.executor
+    with parallel.using_workers(3):
+        print(parallel.map_solves(pow, [(2, 1), (2, 2), (2, 3)]))
+    print("replaced", first is not parallel._Pool.executor, first._shutdown_thread)
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
+def test_one_pool_is_kept_and_replaced_when_its_size_changes(tmp_path):
+    path = tmp_path / "pool.py"
+    path.write_text(ONE_POOL)
+    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "[8, 9]" in done.stdout and "[2, 4, 8]" in done.stdout
+    assert "replaced True True" in done.stdout

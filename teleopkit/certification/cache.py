@@ -17,7 +17,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from teleopkit import __version__
+from teleopkit._version import __version__
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.verification import load_certificate

@@ -5,111 +5,81 @@ with a :class:`~teleopkit.certification.gain_certificate.GainCertificate`: the v
 admissible polytope inside the box (what the safety layer projects onto), the delay margin of the
 box and the assumptions the verdict rests on.
 
-Methods: ``"nuno"``, the closed form of :mod:`teleopkit.certification.nuno.condition` (nonlinear
-model, frozen gains, instant); ``"lmi"``, the Lyapunov–Krasovskii LMIs of :mod:`certify` on the
-linearisation at rest (:mod:`teleopkit.certification.lmi.verdict`; seconds for one joint, minutes
-for two); ``"all"``, both. Gain classes: :mod:`teleopkit.certification.gain_classes`.
+Methods are in :mod:`teleopkit.certification.methods`, gain classes in
+:mod:`teleopkit.certification.gain_classes`. The LMI method solves on worker processes
+(``workers=``, :mod:`teleopkit.certification.lmi.workers`) and, asked to, keeps its answers on
+disk (``cache=True``, :mod:`teleopkit.certification.cache`), re-verified whenever they are
+reused.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import logging
 
+from teleopkit.certification.cache import cached, question_key
 from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay_floors
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.nuno.condition import certify_closed_form
-from teleopkit.certification.nuno.scheduled import certify_scheduled
+from teleopkit.certification.lmi.workers import using_workers
+from teleopkit.certification.methods import best_certificate, certify_with, methods_for
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
-__all__ = [
-    "DEFAULT_BOX",
-    "METHODS",
-    "best_certificate",
-    "certify_gains",
-    "default_certificate",
-    "methods_for",
-]
-
-METHODS = ("nuno", "lmi", "all")
-"""Values of ``method`` accepted by :func:`certify_gains`."""
+__all__ = ["DEFAULT_BOX", "certify_all", "certify_gains", "default_certificate"]
 
 DEFAULT_BOX = ((1.0, 50.0), (1.0, 150.0))
 """Default ``(K_r, B_r)`` ranges of every joint: the action space of the environments."""
 
-Certifier = Callable[[TeleoperatorParams, GainBox, float, float, GainVariation,
-                      tuple[float, float]], GainCertificate]
+_log = logging.getLogger("teleopkit.certification")
 
 
-def _lmi() -> Certifier:
-    from teleopkit.certification.lmi.verdict import certify_lmi  # cvxpy: only when asked for
-
-    return certify_lmi
-
-
-def _closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                 variation: GainVariation, delay_lower: tuple[float, float]) -> GainCertificate:
-    """The closed-form family: Nuño's condition for frozen gains, its storage for schedules.
-
-    Both cover every delay in ``[0, T_i*]``, hence any minimum delay (``delay_lower`` is not
-    needed and the certificate records 0).
-    """
-    certify = certify_scheduled if variation.scheduled else certify_closed_form
-    return certify(params, box, tl_max, tr_max, variation)
-
-
-_METHODS: dict[str, Callable[[], Certifier]] = {"nuno": lambda: _closed_form, "lmi": _lmi}
-
-
-def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
-    """The single methods that ``method`` runs for a gain class (``"all"`` expands).
+def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
+                tr_max: float = 1.0, method: str = "nuno",
+                variation: GainVariation | str = "frozen", tl_min: float = 0.0,
+                tr_min: float = 0.0, workers: int | None = None,
+                cache: bool = False) -> list[GainCertificate]:
+    """The answer of every method that ``method`` runs for the class (see :func:`certify_gains`).
 
     Parameters
     ----------
-    method : {"nuno", "lmi", "all"}
-        Requested method.
-    variation : GainVariation
-        Gain class: the closed form covers frozen and scheduled gains, the LMIs frozen,
-        switching and rate-bounded ones.
+    params, box, tl_max, tr_max, method, variation, tl_min, tr_min, workers, cache
+        As in :func:`certify_gains`.
 
     Returns
     -------
-    tuple of str
-        Method names.
+    list of GainCertificate
+        One certificate per method, in the order of
+        :func:`~teleopkit.certification.methods.methods_for`.
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-    if method != "all":
-        return (method,)
-    if variation.scheduled:
-        return ("nuno",)
-    return ("lmi", "nuno") if variation.kind == "frozen" else ("lmi",)
+    if isinstance(variation, str):
+        variation = parse_gain_variation(variation)
+    if box.n_joints != params.n_joints:
+        raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
+    tl_max, tr_max = check_delay_bounds(tl_max, tr_max)
+    lower = check_delay_floors(tl_min, tr_min, tl_max, tr_max)
+    checked: GainVariation = variation
 
+    def answer(name: str) -> GainCertificate:
+        def compute() -> GainCertificate:
+            return certify_with(name, params, box, tl_max, tr_max, checked, lower)
 
-def best_certificate(certificates: list[GainCertificate]) -> GainCertificate:
-    """The most useful of several certificates of one question.
+        if name != "lmi" or not cache:  # the closed form is instant
+            return compute()
+        key = question_key(params, box, (tl_max, tr_max), lower, name, str(checked))
+        certificate, reused = cached(key, compute)
+        if reused:
+            _log.info("LMI certificate reused from the cache (re-verified)")
+        return certificate
 
-    Certified before not certified, then a certified polytope, then the larger delay margin.
-    For frozen gains every method certifies pointwise, so the best one alone is sound.
-
-    Parameters
-    ----------
-    certificates : list of GainCertificate
-        Answers of different methods to the same question.
-
-    Returns
-    -------
-    GainCertificate
-        The best of them.
-    """
-    return max(certificates, key=lambda c: (c.certified, c.polytope_certified, c.delay_margin))
+    with using_workers(workers):
+        return [answer(name) for name in methods_for(method, variation)]
 
 
 def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                   tr_max: float = 1.0, method: str = "nuno",
                   variation: GainVariation | str = "frozen", tl_min: float = 0.0,
-                  tr_min: float = 0.0) -> GainCertificate:
+                  tr_min: float = 0.0, workers: int | None = None,
+                  cache: bool = False) -> GainCertificate:
     """Certify a box of remote gains for delays ``T_l_min <= T_l(t) <= T_l*``, likewise ``T_r``.
 
     Parameters
@@ -129,6 +99,12 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
     tl_min, tr_min : float
         Minimum delays in seconds (a network's latency floor), in ``[0, T_i*)``. The LMIs use
         them (a larger certified set); the closed form covers delays from 0 whatever they are.
+    workers : int, optional
+        Worker processes of the LMI solves (1: in this process); default
+        ``TELEOPKIT_WORKERS``, else the core count.
+    cache : bool
+        Reuse an LMI certificate of the same question kept on disk (re-verified against the
+        plant) and keep new ones there (:mod:`teleopkit.certification.cache`).
 
     Returns
     -------
@@ -143,14 +119,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
     >>> cert.certified, round(cert.delay_margin, 4)
     (True, 1.0954)
     """
-    if isinstance(variation, str):
-        variation = parse_gain_variation(variation)
-    if box.n_joints != params.n_joints:
-        raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
-    tl_max, tr_max = check_delay_bounds(tl_max, tr_max)
-    lower = check_delay_floors(tl_min, tr_min, tl_max, tr_max)
-    return best_certificate([_METHODS[name]()(params, box, tl_max, tr_max, variation, lower)
-                             for name in methods_for(method, variation)])
+    return best_certificate(certify_all(params, box, tl_max, tr_max, method, variation, tl_min,
+                                        tr_min, workers, cache))
 
 
 def default_certificate(params: TeleoperatorParams | None = None, delay_bound: float = 1.0,

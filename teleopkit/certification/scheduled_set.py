@@ -93,7 +93,18 @@ class ScheduledSet:
                      ("shape", "cone", "offset", "damping_low", "damping_high"))
 
     def kappa(self, gains: np.ndarray) -> np.ndarray:
-        """The scheduled variable ``kappa = K_r^1 / s_1`` of gain vectors ``(..., 2 n)``."""
+        """The scheduled variable ``kappa = K_r^1 / s_1`` of gain vectors.
+
+        Parameters
+        ----------
+        gains : ndarray, shape (..., 2 n)
+            ``[K_r..., B_r...]``.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            ``kappa``.
+        """
         return np.asarray(gains, dtype=float)[..., 0] / self.shape[0]
 
     def dissipation_rates(self, gains: np.ndarray) -> np.ndarray:

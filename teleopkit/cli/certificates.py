@@ -43,9 +43,12 @@ _FLOOR = click.FloatRange(min=0, max=1e6)
                    "~/.cache/teleopkit), re-verified against the plant; store new ones there.")
 @click.option("--progress/--no-progress", "show_progress", default=True, show_default=True,
               help="Show the LMI search (cells solved, margin bracket) on a terminal.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes of the LMI solves (1: in this process) [default: "
+                   "$TELEOPKIT_WORKERS, else the core count].")
 def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, tr_max: float,
             tl_min: float, tr_min: float, method: str, variation: object, as_json: bool,
-            cache: bool, show_progress: bool) -> int:
+            cache: bool, show_progress: bool, workers: int | None) -> int:
     """Certify that every remote gain in the ranges is stable for the delay bounds.
 
     The answer says what it covers: the gain class in plain words and every assumption (see
@@ -53,13 +56,7 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     """
     from dataclasses import replace
 
-    from teleopkit.certification import (
-        GainCertificate,
-        best_certificate,
-        certify_gains,
-        methods_for,
-    )
-    from teleopkit.certification.cache import cached, question_key
+    from teleopkit.certification import best_certificate, certify_all
     from teleopkit.certification.gain_sets import GainBox, parse_range
     from teleopkit.certification.report import certificate_table
     from teleopkit.model.params import PDGains, paper_setup
@@ -70,23 +67,9 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
                                      param_hint=f"'{option}'")
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
-
-    def answer(name: str) -> GainCertificate:
-        def compute() -> GainCertificate:
-            return certify_gains(params, box, tl_max, tr_max, name, variation, tl_min, tr_min)
-
-        if name != "lmi" or not cache:  # the closed form is instant
-            return compute()
-        key = question_key(params, box, (tl_max, tr_max), (tl_min, tr_min), name,
-                           str(variation))
-        certificate, reused = cached(key, compute)
-        if reused:
-            click.echo("(LMI certificate reused from the cache, re-verified; --no-cache to "
-                       "recompute)", err=True)
-        return certificate
-
     with progress(show_progress):
-        results = [answer(name) for name in methods_for(method, variation)]
+        results = certify_all(params, box, tl_max, tr_max, method, variation,  # type: ignore
+                              tl_min, tr_min, workers=workers, cache=cache)
     best = best_certificate(results)
     if as_json:
         import json

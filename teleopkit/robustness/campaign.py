@@ -67,6 +67,9 @@ def _run_distributed(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay
                      client: Client, done: Callable[[pd.DataFrame], None]) -> None:
     from distributed import KilledWorker, as_completed
 
+    from teleopkit.robustness.dask_workers import OneNumbaThread
+
+    client.register_plugin(OneNumbaThread())
     shared = client.scatter(dict(traces), broadcast=True) if traces else {}  # sent once
     futures = [client.submit(simulate_chunk, task, shared, pure=False) for task in tasks]
     try:
@@ -101,10 +104,9 @@ def local_cluster(workers: int | None = None) -> Any:
     -------
     distributed.LocalCluster
         Processes with one thread each and no dashboard (with Dask's one-thread defaults for
-        OpenMP, MKL and OpenBLAS); each task runs numba on one thread
-        (:func:`simulate_chunk`). ``NUMBA_NUM_THREADS`` is deliberately not set through Dask:
-        its nanny would also set it in this process, where numba then refuses to compile once
-        its threads run with another count.
+        OpenMP, MKL and OpenBLAS); every worker runs numba on one thread
+        (:class:`~teleopkit.robustness.dask_workers.OneNumbaThread`, set once when a campaign
+        starts on it).
     """
     from distributed import LocalCluster
 

@@ -201,8 +201,8 @@ def simulate_chunk(task: ChunkTask,
                    traces: Mapping[str, TraceDelay] | None = None) -> pd.DataFrame:
     """Simulate one chunk of scenarios (the body of a Dask task).
 
-    Scenarios sharing a teleoperator run as one batch of the simulator, single-threaded (the
-    workers provide the parallelism).
+    Scenarios sharing a teleoperator run as one batch of the simulator (on a Dask cluster each
+    worker runs numba on one thread: the workers provide the parallelism).
 
     Parameters
     ----------
@@ -217,15 +217,8 @@ def simulate_chunk(task: ChunkTask,
     pandas.DataFrame
         The chunk's rows with the result columns, sorted by ``scenario``.
     """
-    import numba
-
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        groups = task.rows.groupby([*MODEL_FACTORS, "controller"], sort=False)
-        parts = [_simulate_group(task, rows, traces or {}) for _, rows in groups]
-    finally:
-        numba.set_num_threads(threads)
+    groups = task.rows.groupby([*MODEL_FACTORS, "controller"], sort=False)
+    parts = [_simulate_group(task, rows, traces or {}) for _, rows in groups]
     table = pd.concat(parts, ignore_index=True).sort_values("scenario", ignore_index=True)
     table.insert(1, "chunk", np.int64(task.chunk))
     return table

@@ -4,7 +4,7 @@ It implements, for any number of joints and with the method of :mod:`teleopkit.s
 exactly the model of :mod:`teleopkit.model.dynamics`,
 :mod:`teleopkit.model.laws` and :mod:`teleopkit.delays.history`; the readable
 :mod:`teleopkit.sim.numpy_integrator` is what the tests compare it with. States follow
-:class:`teleopkit.sim.state.StateLayout` (``8 n`` values per scenario; the kernel addresses its
+:class:`teleopkit.sim.state.StateLayout` (``12 n`` values per scenario; the kernel addresses its
 blocks by constant offsets, which the comparison with the numpy integrator checks).
 
 Layout for speed (measured reasons in ``benchmarks/README.md``):
@@ -27,9 +27,8 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
 - When every delay of a call exceeds the step (no read falls inside the current step), a delayed
   read depends on the stage time only, and a two-link block reads the history at four of the six
   stages: the second stage at a quarter step and the next step's first stage reuse the reads of
-  the stages at the same times (bit for bit; with RK4, whose reads this halved, batch 4096 went
-  from 1.6 to 1.8 M env-steps/s). Delays that jump (:mod:`teleopkit.delays.jumps`) keep the
-  step's first read: its last stage reads the left limits at the step's end.
+  the stages at the same times (bit for bit). Delays that jump (:mod:`teleopkit.delays.jumps`)
+  keep the step's first read: its last stage reads the left limits at the step's end.
 - Delays come as one shape of time per channel times a scale per scenario when both profiles
   have ``factors`` (the paper's Fourier profile, constant delays; see :func:`advance`): the
   kernel multiplies as it reads instead of reading ``S B`` delays sampled by numpy (26 MB per
@@ -40,16 +39,16 @@ Layout for speed (measured reasons in ``benchmarks/README.md``):
 - A block of one scenario (a single run, or the last block of a batch) runs the per-variable
   loops without their lane loop: the vectorised loop's set-up for one lane took about half of
   a single scenario's time (a 40 s run: 17 ms, 9 ms without).
-- A batch of one runs the same block body outside a parallel loop: launching the parallel loop
-  and capping its threads cost about a fifth of a single scenario's control period (23.5 us,
-  19 us without).
+- A batch of one block (at most :data:`LANES` scenarios) runs the same block body outside the
+  parallel loop: launching the parallel loop cost about a fifth of a single scenario's control
+  period (23.5 us, 19 us without), and waking the other threads for one block only costs time.
+  The thread count of numba is never changed here.
 """
 
 from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numba import njit, prange
 
@@ -497,15 +496,21 @@ def _advance(m, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, 
 
 
 @njit(cache=True, error_model="numpy")
-def _advance_single(m, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
+def _advance_serial(m, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
                     gains, out_state, out_delayed, reuse):
-    """:func:`_advance` for one scenario, without the parallel loop's launch."""
+    """:func:`_advance` for one block (at most :data:`LANES` scenarios), in this thread.
+
+    Waking the other threads for one block would only cost time (for one scenario the parallel
+    launch cost a fifth of the call); the block's arithmetic is the same as in the loop.
+    """
+    batch = x.shape[0]
     xs, st, slopes, work, delayed = _scratch(1, x.shape[1])
     reuse = reuse and delays_exceed(delays, scale, dt)
-    _transfer(x, xs, 0, 0, 1, True)
+    _transfer(x, xs, 0, 0, batch, True)
     _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
-                   gains, out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, 1, reuse)
-    _transfer(x, xs, 0, 0, 1, False)
+                   gains, out_state, out_delayed, xs, st, slopes, work, delayed, 0, 0, batch,
+                   reuse)
+    _transfer(x, xs, 0, 0, batch, False)
 
 
 def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt: float,
@@ -516,7 +521,7 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
 
     Parameters
     ----------
-    x : ndarray, shape (B, 8 n)
+    x : ndarray, shape (B, 12 n)
         States at grid step ``step0``; overwritten with the final states.
     hist : ndarray, shape (B, 2, L, 2 n)
         Ring buffers of the two channels (channel 0: ``q_l``, channel 1: ``theta_r``): grid step
@@ -547,7 +552,7 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         Remote gains ``[K_r, B_r]`` held over each control period.
     model : ndarray
         Model constants from :func:`kernel_model`.
-    out_state : ndarray, shape (P, B, 8 n)
+    out_state : ndarray, shape (P, B, 12 n)
         Receives the state at the end of each period.
     out_delayed : ndarray, shape (P, B, 2, n)
         Receives ``q_l(t - T_l)`` and ``theta(t - T_r)`` at the end of each period.
@@ -555,13 +560,7 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
     # the last argument allows reusing delayed reads (the tests turn it off to compare)
     args = (model, x, hist, initial, step0, dt, substeps, delays, scale, left, qh, qh_gain,
             gains, out_state, out_delayed, True)
-    if x.shape[0] == 1:  # one scenario: the parallel launch and thread cap cost a fifth
-        _advance_single(*args)
-        return
-    threads = numba.get_num_threads()
-    if x.shape[0] <= LANES:  # one block: waking the other threads would only cost time
-        numba.set_num_threads(1)
-    try:
+    if x.shape[0] <= LANES:
+        _advance_serial(*args)
+    else:
         _advance(*args)
-    finally:
-        numba.set_num_threads(threads)

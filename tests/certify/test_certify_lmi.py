@@ -16,7 +16,6 @@ from certify import (
     max_delay_certificate,
 )
 from certify.bisection import SCAN_TRIES
-from certify.solve import set_solver_threads, solver_threads
 
 BENCHMARK_EXACT = 6.172581371  # arccos(-0.9) / sqrt(0.19)
 
@@ -217,12 +216,7 @@ def test_frozen_parameter_uses_vertex_functionals(benchmark_system, method, mu):
 
 def test_a_thread_cap_leaves_the_verdict_alone(benchmark_system):
     free = certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0)
-    try:
-        set_solver_threads(1)
-        assert solver_threads() == 1
-        capped = certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0)
-    finally:
-        set_solver_threads(0)
+    capped = certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0, threads=1)
     assert capped.certified and free.certified
     with pytest.raises(ValueError, match="threads must be 0"):
-        set_solver_threads(-1)
+        certify_delay(benchmark_system, 4.0, method="jensen", mu=0.0, threads=-1)

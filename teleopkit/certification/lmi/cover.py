@@ -299,7 +299,7 @@ def _solve_level(params: TeleoperatorParams,
         solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
                                                        "switching", method, delay_lower,
                                                        CELL_RETRY))
-                                    for k in indices])
+                                    for k in indices], share_cores=True)
         for k, cert in zip(indices, solved, strict=True):
             known[k] = cert
             memo.record(*todo[k], cert)
@@ -329,7 +329,7 @@ def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: Ce
         batch = actions[start:start + CORNERS_AT_ONCE]
         solved = map_solves(_call, [(vertex_certificate, (params, action, tl_max, tr_max,
                                                           method, delay_lower))
-                                    for action in batch])
+                                    for action in batch], share_cores=True)
         solves += len(solved)
         for action, verdict in zip(batch, solved, strict=True):
             memo.record_vertex(action, verdict)
@@ -338,9 +338,9 @@ def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: Ce
     return solves
 
 
-def _call(solve: Callable[..., Certificate], args: tuple) -> Certificate:
-    """One solve of a cover on a worker: a cell or a gain vertex alone."""
-    return solve(*args)
+def _call(solve: Callable[..., Certificate], args: tuple, threads: int = 0) -> Certificate:
+    """One solve of a cover on a worker: a cell or a gain vertex alone, on ``threads`` threads."""
+    return solve(*args, threads=threads)
 
 
 def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
@@ -508,7 +508,7 @@ def vertex_margin(params: TeleoperatorParams, action: np.ndarray, method: str = 
         _log.info("limiting vertex margin in [%.4g, %.4g] s: trying %s s", low, high,
                   ", ".join(f"{h:.4g}" for h in points))
         results = map_solves(vertex_certificate, [(params, action, h, h, method, delay_lower)
-                                                  for h in points])
+                                                  for h in points], share_cores=True)
         certified = [h for h, cert in zip(points, results, strict=True) if cert.certified]
         found = found or bool(certified)
         low = max(certified, default=low)

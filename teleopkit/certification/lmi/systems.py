@@ -154,7 +154,7 @@ def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
 def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                     tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
                     delay_lower: tuple[float, float] = NO_LOWER,
-                    retry: str = "always") -> Certificate:
+                    retry: str = "always", threads: int = 0) -> Certificate:
     """Certify a gain polytope for the delay bounds ``(T_l*, T_r*)``.
 
     Parameters
@@ -174,6 +174,8 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
     retry : {"always", "accurate"}
         When a failed solve is tried again in balanced coordinates
         (:class:`certify.solve.LMIProblem`).
+    threads : int
+        Most threads of the solver's linear algebra (0: its default).
 
     Returns
     -------
@@ -181,7 +183,8 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         The LMI certificate (``certified`` is the verdict; solver failures are not certified).
     """
     return certify_delay(gain_set_system(params, polytope, variation), [tl_max, tr_max], method,
-                         lower=list(delay_lower), channels=CHANNELS, retry=retry)
+                         lower=list(delay_lower), channels=CHANNELS, retry=retry,
+                         threads=threads)
 
 
 def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
@@ -230,7 +233,8 @@ def _vertex_system(params: TeleoperatorParams, action: np.ndarray) -> PolytopicD
 
 def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: float,
                        tr_max: float, method: str = LMI_METHOD,
-                       delay_lower: tuple[float, float] = NO_LOWER) -> Certificate:
+                       delay_lower: tuple[float, float] = NO_LOWER,
+                       threads: int = 0) -> Certificate:
     """Certify one constant gain vector alone for the delay bounds ``(T_l*, T_r*)``.
 
     Parameters
@@ -245,6 +249,8 @@ def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: f
         A :data:`certify.METHODS` name.
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)``.
+    threads : int
+        Most threads of the solver's linear algebra (0: its default).
 
     Returns
     -------
@@ -252,4 +258,4 @@ def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: f
         The LMI certificate of the gain at every rest configuration.
     """
     return certify_delay(_vertex_system(params, action), [tl_max, tr_max], method,
-                         lower=list(delay_lower), channels=CHANNELS)
+                         lower=list(delay_lower), channels=CHANNELS, threads=threads)

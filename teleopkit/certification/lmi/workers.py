@@ -1,17 +1,20 @@
 """Independent LMI solves on the local cores.
 
 Cells of a cover, and the vertex checks before a split, are independent problems: they are
-solved by a pool of worker processes, one per core, started by a fork server that imports the
-LMI modules once (forking the caller directly can deadlock on locks its threads hold). The
-number of workers is ``os.cpu_count()`` unless the environment variable ``TELEOPKIT_WORKERS``
-sets it (``1`` solves in this process). Results come back in the order of the tasks, so a cover
-is the same whatever the number of workers.
+solved by one pool of worker processes, started by a fork server that imports the LMI modules
+once (forking the caller directly can deadlock on locks its threads hold) and shut down when the
+interpreter exits. The number of workers is set explicitly, by ``certify_gains(...,
+workers=N)`` or ``teleopkit certify --workers N`` (both enter :func:`using_workers`); without
+it, the environment variable ``TELEOPKIT_WORKERS``, else ``os.cpu_count()`` (``1`` solves in
+this process). Results come back in the order of the tasks, so a cover is the same whatever the
+number of workers.
 
-Each worker gets its share of the cores (``os.cpu_count() // workers`` threads) for BLAS,
-through :mod:`threadpoolctl`, and for Clarabel's linear algebra. Both default to every core, and
-on the small dense blocks of these LMIs threads cost more than they give: with two workers
-each running two BLAS and two solver threads on two cores, a level of cells took as long as
-solving them one after the other in one process.
+Each worker gets its share of the cores (:func:`threads_per_worker`) for BLAS, through
+:mod:`threadpoolctl` when it starts, and for Clarabel's linear algebra, passed with each solve
+(``threads=`` of :func:`certify.certify_delay`). Both default to every core, and on the small
+dense blocks of these LMIs threads cost more than they give: with two workers each running two
+BLAS and two solver threads on two cores, a level of cells took as long as solving them one
+after the other in one process.
 
 A worker starts by importing the caller's main module, as every non-fork start of
 :mod:`multiprocessing` does, so a script must keep its work under
@@ -22,65 +25,149 @@ interpreter prompt nothing is re-run.
 
 from __future__ import annotations
 
+import ast
+import atexit
+import contextlib
+import functools
 import multiprocessing
 import os
 import sys
 import warnings
-from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from contextvars import ContextVar
 from typing import Any, TypeVar
 
 from threadpoolctl import threadpool_limits
 
-from certify.solve import set_solver_threads
-
-__all__ = ["map_solves", "start_workers", "workers"]
+__all__ = ["map_solves", "shutdown_workers", "start_workers", "threads_per_worker",
+           "using_workers", "workers"]
 
 _T = TypeVar("_T")
-_POOL: dict[int, Executor] = {}
+_CHOSEN: ContextVar[int | None] = ContextVar("teleopkit_lmi_workers", default=None)
+
+
+class _Pool:
+    """The one pool of worker processes (replaced when another size is asked for)."""
+
+    executor: ProcessPoolExecutor | None = None
+    size = 0
+
+
+def _count(value: int | str, source: str) -> int:
+    try:
+        count = int(value)
+    except ValueError:
+        raise ValueError(f"{source} must be a whole number, got {value!r}") from None
+    if count < 1:
+        raise ValueError(f"{source} must be at least 1, got {count}")
+    return count
 
 
 def workers() -> int:
-    """Number of worker processes (``TELEOPKIT_WORKERS`` or the core count).
+    """Number of worker processes in force.
+
+    The count of the enclosing :func:`using_workers`, else ``TELEOPKIT_WORKERS``, else the core
+    count.
 
     Returns
     -------
     int
         At least 1.
     """
+    chosen = _CHOSEN.get()
+    if chosen is not None:
+        return chosen
     text = os.environ.get("TELEOPKIT_WORKERS", "")
+    return _count(text, "TELEOPKIT_WORKERS") if text else max(1, os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def using_workers(count: int | None) -> Iterator[None]:
+    """Solve with ``count`` worker processes inside the block (None: the default).
+
+    Parameters
+    ----------
+    count : int or None
+        Worker processes (1: in this process).
+
+    Yields
+    ------
+    None
+        While the block runs.
+    """
+    token = _CHOSEN.set(None if count is None else _count(count, "workers"))
     try:
-        count = int(text) if text else (os.cpu_count() or 1)
-    except ValueError:
-        raise ValueError(f"TELEOPKIT_WORKERS must be a whole number, got {text!r}") from None
-    return max(1, count)
+        yield
+    finally:
+        _CHOSEN.reset(token)
+
+
+def threads_per_worker(count: int) -> int:
+    """Threads each of ``count`` side-by-side solves may use: its share of the cores.
+
+    Parameters
+    ----------
+    count : int
+        Solves running at once.
+
+    Returns
+    -------
+    int
+        ``os.cpu_count() // count`` (at least 1) for several, 0 (the solver's default) for one.
+    """
+    return max(1, (os.cpu_count() or 1) // count) if count > 1 else 0
 
 
 def _main_is_guarded() -> bool:
-    """Whether the main module can be imported by a worker without running the caller's work."""
+    """Whether the main module can be imported by a worker without running the caller's work.
+
+    True when the script has a top-level ``if __name__ == "__main__":`` block (or there is no
+    script: an interpreter prompt or a notebook re-runs nothing).
+    """
     path = getattr(sys.modules.get("__main__"), "__file__", None)
-    if path is None:  # an interpreter prompt or a notebook: nothing is re-run
+    if path is None:
         return True
     try:
-        return "__main__" in open(path, encoding="utf-8", errors="replace").read()
-    except OSError:
+        tree = ast.parse(open(path, encoding="utf-8", errors="replace").read())
+    except (OSError, SyntaxError, ValueError):
         return False
+    return any(isinstance(node, ast.If) and _is_main_test(node.test) for node in tree.body)
+
+
+def _is_main_test(test: ast.expr) -> bool:
+    """Whether ``test`` is ``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1
+            and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = {ast.unparse(test.left), ast.unparse(test.comparators[0])}
+    return sides in ({"__name__", "'__main__'"}, {"__name__", '"__main__"'})
 
 
 def _share_cores(threads: int) -> None:
-    """Start a worker with its share of the cores: ``threads`` for BLAS and for Clarabel."""
+    """Start a worker with its share of the cores for BLAS (the solver's is passed per solve)."""
     threadpool_limits(threads)
-    set_solver_threads(threads)
 
 
-def _pool(count: int) -> Executor:
-    if count not in _POOL:
+def _pool(count: int) -> ProcessPoolExecutor:
+    """The pool, with ``count`` workers (the previous one is shut down if its size differs)."""
+    if _Pool.executor is None or _Pool.size != count:
+        shutdown_workers()
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["teleopkit.certification.lmi.systems"])
-        threads = max(1, (os.cpu_count() or 1) // count)
-        _POOL[count] = ProcessPoolExecutor(count, mp_context=context, initializer=_share_cores,
-                                           initargs=(threads,))
-    return _POOL[count]
+        _Pool.executor = ProcessPoolExecutor(count, mp_context=context,
+                                             initializer=_share_cores,
+                                             initargs=(threads_per_worker(count),))
+        _Pool.size = count
+    return _Pool.executor
+
+
+@atexit.register
+def shutdown_workers() -> None:
+    """Stop the worker processes, if any (also done when the interpreter exits)."""
+    if _Pool.executor is not None:
+        _Pool.executor.shutdown(wait=True, cancel_futures=True)
+        _Pool.executor, _Pool.size = None, 0
 
 
 def _ready() -> None:
@@ -106,7 +193,8 @@ def start_workers() -> None:
             pool.submit(_ready)
 
 
-def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]]) -> list[_T]:
+def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]],
+               share_cores: bool = False) -> list[_T]:
     """``[solve(*task) for task in tasks]``, on the worker processes when there are several.
 
     Parameters
@@ -115,18 +203,25 @@ def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]]) -> li
         A module-level function (picklable).
     tasks : sequence of tuple
         Its arguments, one tuple per call.
+    share_cores : bool
+        Pass each call ``threads=`` its share of the cores (:func:`threads_per_worker`; 0, the
+        solver's default, when the calls run in this process).
 
     Returns
     -------
     list
         The results, in task order.
     """
-    count = min(workers(), len(tasks))
-    if count > 1 and not _main_is_guarded():
+    count = workers()
+    parallel = min(count, len(tasks)) > 1
+    if parallel and not _main_is_guarded():
         warnings.warn("LMI solves run in one process: the main script has no "
                       "'if __name__ == \"__main__\":' guard, which worker processes need",
                       RuntimeWarning, stacklevel=2)
-        count = 1
-    if not _parallel(count):
+        parallel = False
+    parallel = parallel and _parallel(count)
+    if share_cores:
+        solve = functools.partial(solve, threads=threads_per_worker(count) if parallel else 0)
+    if not parallel:
         return [solve(*task) for task in tasks]
     return list(_pool(count).map(solve, *zip(*tasks, strict=True)))
