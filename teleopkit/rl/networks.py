@@ -16,7 +16,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["Actor", "Critic", "Standardise"]
+__all__ = ["Actor", "Critic", "Standardise", "half_range"]
 
 _LN2 = math.log(2.0)
 
@@ -95,7 +95,8 @@ class Actor(nn.Module):
     start : ndarray, shape (act_dim,), optional
         The gains at ``z = 0``, where the untrained actor starts (strictly above ``low``;
         default the centre of the box): the map becomes ``low + (start - low) softplus(z) /
-        ln 2``, which still reaches every gain of the box.
+        ln 2``, which still reaches every gain of the box. A gain whose range is a single value
+        (``low == high``, for example a stiffness held constant) is that value.
     """
 
     low: torch.Tensor
@@ -112,9 +113,11 @@ class Actor(nn.Module):
         # A small last layer starts every output near ``start`` (DDPG's 3e-3).
         self.head = _linear(hidden[-1], act_dim, generator, bound=3e-3)
         start = (low + high) / 2 if start is None else np.asarray(start, dtype=float)
-        if start.shape != np.shape(low) or not np.all(start > low):
+        fixed = np.asarray(high) == np.asarray(low)
+        if start.shape != np.shape(low) or not np.all((start > low) | fixed):
             raise ValueError(f"the actor's start {start.tolist()} must lie above the box's "
                              f"lower corner {np.asarray(low).tolist()}")
+        start = np.where(fixed, low, start)
         self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))
         self.register_buffer("span", torch.as_tensor((start - low) / _LN2, dtype=torch.float32))
 
@@ -133,6 +136,23 @@ class Actor(nn.Module):
         """
         z = self.head(self.body(self.normalise(obs)))
         return self.low + self.span * F.softplus(z)
+
+
+def half_range(low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Half the box's range per gain (1 for a gain with a single value: nothing to rescale).
+
+    Parameters
+    ----------
+    low, high : ndarray, shape (act_dim,)
+        The action box.
+
+    Returns
+    -------
+    ndarray, shape (act_dim,)
+        ``(high - low) / 2`` where positive, else 1.
+    """
+    half = (np.asarray(high, dtype=float) - np.asarray(low, dtype=float)) / 2
+    return np.where(half > 0, half, 1.0)
 
 
 class Critic(nn.Module):
@@ -161,7 +181,8 @@ class Critic(nn.Module):
         super().__init__()
         self.normalise = Standardise(obs_dim)
         self.register_buffer("centre", torch.as_tensor((high + low) / 2, dtype=torch.float32))
-        self.register_buffer("half_span", torch.as_tensor((high - low) / 2, dtype=torch.float32))
+        self.register_buffer("half_span", torch.as_tensor(half_range(low, high),
+                                                          dtype=torch.float32))
         self.state_path = nn.Sequential(*_mlp((obs_dim, *hidden_state), generator))
         self.action_path = nn.Sequential(*_mlp((len(low), *hidden_action), generator))
         merged_in = hidden_state[-1] + hidden_action[-1]

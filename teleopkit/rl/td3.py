@@ -69,7 +69,7 @@ from torch.nn import functional as F
 
 from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.certification.scheduled_set import ScheduledSet
-from teleopkit.rl.networks import Actor, Critic, Standardise
+from teleopkit.rl.networks import Actor, Critic, Standardise, half_range
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import Batch
 from teleopkit.rl.torch_projection import torch_projection
@@ -245,7 +245,7 @@ class TD3:
                                                 fused=True)
         self.critic_optimizers = [torch.optim.Adam(c.parameters(), lr=cfg.critic_lr, fused=True)
                                   for c in self.critics]
-        self.half_range = torch.as_tensor((high - low) / 2, dtype=torch.float32)
+        self.half_range = torch.as_tensor(half_range(low, high), dtype=torch.float32)
         self.updates = 0
         # Parameter lists taken once: walking the modules at every clip, soft update and critic
         # freeze cost about 0.1 ms per update.
