@@ -62,13 +62,14 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
 
     from teleopkit.robustness.campaign import CampaignInterrupted, run_campaign
     from teleopkit.robustness.spec import CampaignSpec
+    from teleopkit.robustness.store import ChunkStore
 
     client = _client(workers, scheduler)
     check_output(out, "--out", (".parquet", ".csv"))
     loaded = CampaignSpec.from_file(spec)
-    chunks = out.with_name(out.name + ".chunks")
-    if not resume and any(chunks.glob("chunk-*.parquet")):
-        raise click.UsageError(f"{chunks} holds chunks of an earlier run: pass --resume to "
+    store = ChunkStore(out)
+    if not resume and store.has_chunks():
+        raise click.UsageError(f"{store.dir} holds chunks of an earlier run: pass --resume to "
                                "continue it, or delete it")
     start = time.perf_counter()
     try:

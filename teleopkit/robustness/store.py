@@ -41,6 +41,10 @@ class ChunkStore:
         """
         return self.dir / f"chunk-{chunk:06d}.parquet"
 
+    def has_chunks(self) -> bool:
+        """Whether finished chunks of an earlier run are kept here."""
+        return any(self.dir.glob("chunk-*.parquet"))
+
     def prepare(self, manifest: dict[str, Any], resume: bool) -> None:
         """Create the directory; check (resume) or reset (no resume) what is there.
 
