@@ -30,8 +30,9 @@ import torch
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
+from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise, to_markdown
+from teleopkit.rl.evaluation import evaluate, summarise, to_markdown
 from teleopkit.rl.td3 import TD3Config
 from teleopkit.rl.training import TrainConfig, train
 

@@ -17,8 +17,9 @@ import numpy as np
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import fixed_gains
+from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import EVAL_SEED, ConstantGains, evaluate, rollout, summarise
+from teleopkit.rl.evaluation import EVAL_SEED, evaluate, rollout, summarise
 from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
 
 SMALL = os.environ.get("TELEOPKIT_DOCS_BUDGET", "full") == "small"

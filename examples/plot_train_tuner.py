@@ -32,10 +32,10 @@ import torch
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
+from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import (
     EVAL_SEED,
-    ConstantGains,
     evaluate,
     rollout,
     summarise,
@@ -160,7 +160,7 @@ print("its stored best static gains:", np.round(pretrained.metadata["best_static
 # :func:`teleopkit.rl.evaluation.evaluate` runs every controller in closed loop through the same
 # batched environment (so through the same safety layer) on the same held-out scenarios, drawn
 # from :data:`teleopkit.rl.evaluation.EVAL_SEED`, which neither training nor the static search saw.
-# :class:`teleopkit.rl.evaluation.ConstantGains` turns a gain vector into a controller.
+# :class:`teleopkit.rl.controllers.ConstantGains` turns a gain vector into a controller.
 controllers = {
     "TD3 (this run)": trained,
     "TD3 (pretrained)": pretrained,

@@ -67,7 +67,8 @@ from pathlib import Path
 import torch
 
 from teleopkit.rl.baselines import best_static_gains, fixed_gains
-from teleopkit.rl.evaluation import ConstantGains, evaluate, summarise, to_markdown
+from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.evaluation import evaluate, summarise, to_markdown
 from teleopkit.rl.td3 import TD3Config
 from teleopkit.rl.training import TrainConfig, train
 

@@ -18,9 +18,11 @@ from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
 from teleopkit.model.params import paper_setup
 from teleopkit.rl.baselines import FIXED_GAINS, best_static_gains, fixed_gains, static_cost
+from teleopkit.rl.comparison import policy_certificate
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
-from teleopkit.rl.evaluation import ConstantGains, evaluate, rollout, save_report
-from teleopkit.rl.policy import PRETRAINED_SCHEDULED, GainPolicy
+from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.evaluation import evaluate, rollout, save_report
+from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
 from teleopkit.rl.td3 import TD3
 from teleopkit.safety.factory import layer_for
 from teleopkit.sim.scenarios import paper_scenarios
@@ -154,7 +156,7 @@ def test_evaluate_command_takes_a_certificate_file(policy, tmp_path):
     done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
                      "--certificate", str(certificate), "--out", str(tmp_path / "report"))
     assert done.returncode == 0, done.stderr
-    assert "searching the best static" in done.stderr and "unsafe actions: 0" in done.stdout
+    assert "finding the comparators" in done.stderr and "unsafe actions: 0" in done.stdout
 
 
 def test_evaluate_command_writes_the_report(policy, tmp_path):
@@ -163,9 +165,11 @@ def test_evaluate_command_writes_the_report(policy, tmp_path):
     done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
                      "--out", str(tmp_path / "report"))
     assert done.returncode == 0, done.stderr
-    assert "| TD3 |" in done.stdout and "unsafe actions: 0" in done.stdout
+    assert "| TD3 (frozen) |" in done.stdout and "unsafe actions: 0" in done.stdout
     summary = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)
-    assert list(summary.index) == ["TD3", "fixed", "best static"]
+    assert list(summary.index) == ["TD3 (frozen)", "best static", "fixed"]
+    assert {"cost_opening", "cost_rest"} <= set(summary.columns)
+    np.testing.assert_allclose(summary["cost_opening"] + summary["cost_rest"], summary["cost"])
 
 
 @pytest.mark.parametrize(("args", "needle"), [
@@ -218,13 +222,13 @@ def test_shipped_policy_loads_and_is_small():
         assert path.stat().st_size < 300_000
 
 
-def test_shipped_scheduled_policy_runs_covered_in_its_class():
-    policy = GainPolicy.pretrained(PRETRAINED_SCHEDULED)
-    variation = policy.metadata["gain_variation"]
-    config = FlexTeleopConfig(certificate=default_certificate(variation=variation),
-                              episode_length=1.0)
-    static = np.asarray(policy.metadata["best_static_gains"])
-    assert config.certificate.polytope.contains(static[None], tol=1e-9).all()
+def test_shipped_covered_policy_runs_covered_in_its_class():
+    policy = GainPolicy.pretrained(PRETRAINED_COVERED)
+    certificate = policy_certificate(policy)
+    variation = certificate.gain_variation
+    config = FlexTeleopConfig(certificate=certificate, episode_length=1.0)
+    static = np.asarray(policy.metadata["comparators"]["class_static"])
+    assert certificate.polytope.contains(static[None], tol=1e-9).all()
     run = rollout(policy, 2, 8, config)
     table = run.metrics()
     assert run.unsafe_actions == 0 and table["covered"].all()

@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.nuno.guarantee import StorageGuarantee, storage_guarantee
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
-from teleopkit.model.params import TeleoperatorParams, plant_mismatch
+from teleopkit.model.params import InitialState, TeleoperatorParams, plant_mismatch, plant_params
 
 __all__ = ["GainCertificate"]
 
@@ -82,6 +83,28 @@ class GainCertificate:
         """The set of a scheduled class (``details["set"]``), None for the other classes."""
         data = self.details.get("set")
         return None if data is None else ScheduledSet.from_dict(data)
+
+    def guarantee(self, start: InitialState | None = None) -> StorageGuarantee | None:
+        """What a scheduled class's storage bound allows from a start, in the plant's units.
+
+        Parameters
+        ----------
+        start : InitialState, optional
+            Initial positions (velocities zero, the past held); the paper's start by default
+            (two joints).
+
+        Returns
+        -------
+        StorageGuarantee or None
+            Largest spring deflection, speeds and position mismatch along every run of the
+            class (:mod:`teleopkit.certification.nuno.guarantee`); None for the other classes
+            or an empty set.
+        """
+        allowed, storage = self.scheduled_set, self.storage
+        if allowed is None or storage is None or allowed.is_empty:
+            return None
+        params = replace(plant_params(self.plant), initial=start or InitialState())
+        return storage_guarantee(params, storage, allowed, self.variation)
 
     @property
     def storage(self) -> ScheduledStorage | None:

@@ -9,7 +9,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 __all__ = ["CLASSES_PAGE", "certificate_table"]
 
 CLASSES_PAGE = ('what each gain class covers, and what the safety layer enforces: the '
-                '"What is certified" page of the documentation (docs/certified.rst)')
+                '"What is certified" page of the teleopkit documentation')
 """The closing line of :func:`certificate_table`."""
 
 
@@ -56,10 +56,14 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
                          "alone)")
         label = "admissible" if cert.polytope_certified else "uncertified"
         lines += [f"  {f'{label} j{i + 1}':<16}{_polygon(cert, i)}" for i in range(box.n_joints)]
-        shapes = [text.split(": ")[1].replace("<=", "=") for text in cert.polytope.labels
-                  if text.startswith("common shape") and "<=" in text]
-        if shapes:
-            lines.append(f"  common shape    {', '.join(shapes)}")
+        allowed = cert.scheduled_set
+        if allowed is not None:
+            shape = allowed.shape
+            lines.append("  common shape    " + ", ".join(
+                f"K_r{i + 1} = {s / shape[0]:g} K_r1" for i, s in enumerate(shape) if i))
+        guarantee = cert.guarantee()
+        if guarantee is not None:
+            lines.append(f"  guarantees      {guarantee.describe()}")
         if cert.violation:
             lines.append(f"  violation       {cert.violation}")
         lines += [f"  assumes         {text}" for text in cert.assumptions]

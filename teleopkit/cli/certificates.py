@@ -54,7 +54,7 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     The answer says what it covers: the gain class in plain words and every assumption (see
     the documentation's "What is certified" page).
     """
-    from dataclasses import replace
+    from dataclasses import asdict, replace
 
     from teleopkit.certification import best_certificate, certify_all
     from teleopkit.certification.gain_sets import GainBox, parse_range
@@ -75,6 +75,9 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
         import json
 
         payload = best.to_dict()
+        guarantee = best.guarantee(params.initial)
+        if guarantee is not None:  # from the paper's start (no proof depends on a start)
+            payload["guarantee"] = {**guarantee.to_dict(), "start": asdict(params.initial)}
         payload["results"] = [c.to_dict() for c in results]
         click.echo(json.dumps(payload, indent=2))
     else:

@@ -67,7 +67,7 @@ def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) 
 
 
 def gain_variation(ctx: click.Context | None, param: click.Parameter | None,
-                   value: str) -> GainVariation:
+                   value: str | None) -> GainVariation | None:
     """Option callback: a gain class (:func:`~teleopkit.certification.parse_gain_variation`).
 
     Parameters
@@ -81,11 +81,13 @@ def gain_variation(ctx: click.Context | None, param: click.Parameter | None,
 
     Returns
     -------
-    GainVariation
-        The class.
+    GainVariation or None
+        The class (None when the option was not given and has no default).
     """
     from teleopkit.certification.gain_classes import parse_gain_variation
 
+    if value is None:
+        return None
     try:
         return parse_gain_variation(value)
     except ValueError as error:

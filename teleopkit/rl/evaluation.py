@@ -10,10 +10,12 @@ search from :data:`~teleopkit.rl.baselines.BASELINE_SEED`).
 
 Per scenario: RMS and IAE (and maxima) of the tracking error ``theta_r - q_l(t - T_l)`` and the
 damping error ``theta_r - q_r`` (Euclidean norm over joints, from ``t = 0``), the paper's cost
-(minus the episode return under the environment's reward weights), the mean applied gains and the
-mean projection distance. :func:`summarise` reduces them per controller to the mean and standard
-deviation over scenarios; a controller given as several policies (for example one per training
-seed) also gets the standard deviation of the per-policy means (``seed_std``).
+(minus the episode return under the environment's reward weights) and its split into the opening
+transient (``cost_opening``, the first :data:`OPENING` seconds) and the rest (``cost_rest``), the
+mean applied gains and the mean projection distance. :func:`summarise` reduces them per controller
+to the mean and standard deviation over scenarios; a controller given as several policies (for
+example one per training seed) also gets the standard deviation of the per-policy means
+(``seed_std``).
 """
 
 from __future__ import annotations
@@ -29,15 +31,16 @@ from gymnasium.utils import seeding
 from teleopkit.certification.gain_classes import parse_gain_variation
 from teleopkit.delays.spec import check_trace_ends, parse_delay
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
-from teleopkit.sim.scenarios import paper_scenarios
+from teleopkit.sim.scenarios import Scenario, paper_scenarios
 from teleopkit.sim.trajectory import Trajectory
 
 __all__ = [
     "EVAL_SEED",
     "SUMMARY_METRICS",
-    "ConstantGains",
+    "TABLE_METRICS",
     "Controller",
     "Rollout",
+    "closed_loop",
     "evaluate",
     "rollout",
     "save_report",
@@ -49,24 +52,12 @@ EVAL_SEED = 7_777
 """Default seed of the held-out evaluation scenarios."""
 
 Controller = Callable[[np.ndarray], np.ndarray]
-"""Maps observations ``(B, 7 n)`` to raw gains ``(B, 2 n)`` (the environment projects them)."""
+"""Maps observations ``(B, 7 n)`` to raw gains ``(B, 2 n)`` (the environment projects them);
+one with a ``reset()`` method keeps state over an episode (:mod:`teleopkit.rl.controllers`)."""
 
-
-@dataclass(frozen=True)
-class ConstantGains:
-    """A controller that always asks for the same gains.
-
-    Parameters
-    ----------
-    gains : ndarray, shape (2 n,)
-        ``[K_r..., B_r...]``.
-    """
-
-    gains: np.ndarray
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """The gains, once per observation row."""
-        return np.tile(np.asarray(self.gains, dtype=float), (len(obs), 1))
+OPENING = 2.0
+"""Length in seconds of the opening transient whose share of the cost is reported apart
+(``cost_opening``; ``cost_rest`` is the remainder)."""
 
 
 @dataclass(frozen=True)
@@ -83,6 +74,10 @@ class Rollout:
         Gains the controller asked for.
     reward : ndarray, shape (P, B)
         Rewards.
+    levels : ndarray, shape (P + 1, B)
+        The safety layer's run-time level (budget or tank left; NaN without one) just after
+        each sample, its jump paid; the last row at the end (as
+        :meth:`~teleopkit.safety.CertifiedLoop.run`).
     unsafe_actions : int
         Applied actions outside the certified set (must be 0).
     certificate : str
@@ -93,6 +88,7 @@ class Rollout:
     obs: np.ndarray
     raw: np.ndarray
     reward: np.ndarray
+    levels: np.ndarray
     unsafe_actions: int
     certificate: str = "frozen"
 
@@ -115,6 +111,9 @@ class Rollout:
         """
         table = self.trajectory.metrics()
         table["cost"] = -self.reward.sum(axis=0)
+        opening = self.t[1:] <= OPENING + 1e-9
+        table["cost_opening"] = -self.reward[opening].sum(axis=0)
+        table["cost_rest"] = table["cost"] - table["cost_opening"]
         n = self.applied.shape[-1] // 2
         for i in range(n):
             table[f"mean_Kr_{i + 1}"] = self.applied[:, :, i].mean(axis=0)
@@ -177,26 +176,61 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
     Rollout
         The run.
     """
-    core = TeleopBatch(config if config is not None else FlexTeleopConfig(), scenarios)
+    config = config if config is not None else FlexTeleopConfig()
     rng = seeding.np_random(seed)[0]
-    scenario = paper_scenarios(rng, scenarios, core.config.params)  # what TeleopBatch.draw draws
+    scenario = paper_scenarios(rng, scenarios, config.params)  # what TeleopBatch.draw draws
     if delay != "paper":
         forward, backward = parse_delay(delay, rng)
-        check_trace_ends((forward, backward), core.config.episode_length)
+        check_trace_ends((forward, backward), config.episode_length)
         scenario = replace(scenario, forward=forward, backward=backward)
+    return closed_loop(controller, scenario, config)
+
+
+def closed_loop(controller: Controller, scenario: Scenario,
+                config: FlexTeleopConfig | None = None) -> Rollout:
+    """Run a controller in closed loop on given scenarios for one episode.
+
+    Parameters
+    ----------
+    controller : Controller
+        Observations to raw gains.
+    scenario : Scenario
+        The batch of scenarios (plant, delays, operator reference gains).
+    config : FlexTeleopConfig, optional
+        Environment settings (its ``params`` are replaced by the scenario's).
+
+    Returns
+    -------
+    Rollout
+        The run.
+
+    Raises
+    ------
+    RuntimeError
+        If a run leaves the state bound (a model failure under certified gains).
+    """
+    config = replace(config if config is not None else FlexTeleopConfig(),
+                     params=scenario.params)
+    core = TeleopBatch(config, scenario.batch)
+    reset = getattr(controller, "reset", None)
+    if callable(reset):
+        reset()
     obs = core.start(scenario)
-    records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": []}
+    records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": [], "levels": []}
     parts, applied = [core.loop.simulator.initial_record()], []
-    for _ in range(core.config.max_steps):
+    for _ in range(config.max_steps):
         step = core.step(np.asarray(controller(obs), dtype=float))
         if step.terminated.any():
             raise RuntimeError("a certified controller left the state bound (a model failure)")
         obs = step.obs
         parts.append(step.result)
         applied.append(step.info["applied_action"])
+        level = step.info.get("schedule", np.full(scenario.batch, np.nan))
         for key, value in (("obs", obs), ("raw", step.info["raw_action"]),
-                           ("reward", step.reward)):
+                           ("reward", step.reward), ("levels", level)):
             records[key].append(value)
+    final = core.layer.run_time_state(scenario.batch)
+    records["levels"].append(final[:, 0] if final.shape[1] else np.full(scenario.batch, np.nan))
     arrays = {key: np.stack(value) for key, value in records.items()}
     trajectory = Trajectory.join(parts, np.stack(applied))
     return Rollout(trajectory, unsafe_actions=core.unsafe_actions,
@@ -242,8 +276,12 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
     return pd.concat(frames, ignore_index=True)
 
 
-SUMMARY_METRICS = ("cost", "rms_track", "iae_track", "rms_damp", "iae_damp")
+SUMMARY_METRICS = ("cost", "cost_opening", "cost_rest", "rms_track", "iae_track", "rms_damp",
+                   "iae_damp")
 """Metrics reported by :func:`summarise`."""
+
+TABLE_METRICS = ("cost", "cost_opening", "cost_rest", "rms_track", "rms_damp")
+"""Metrics of the markdown tables (:func:`to_markdown`, ``summary.md``)."""
 
 
 def summarise(per_scenario: pd.DataFrame,
@@ -282,7 +320,7 @@ def summarise(per_scenario: pd.DataFrame,
     return pd.DataFrame(columns).loc[order]
 
 
-def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = SUMMARY_METRICS,
+def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = TABLE_METRICS,
                 baseline: str | None = None) -> str:
     """A markdown table of ``mean ± std`` per controller, with its certificate and coverage.
 

@@ -16,16 +16,17 @@ import numpy as np
 if TYPE_CHECKING:
     from teleopkit.rl.networks import Actor
 
-__all__ = ["PRETRAINED", "PRETRAINED_SCHEDULED", "GainPolicy"]
+__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "GainPolicy"]
 
 PRETRAINED = "td3_policy.npz"
-"""File name of the shipped pretrained policy in ``teleopkit/data``: trained under the closed
-form's frozen-gain certificate, which does not cover the schedules it plays."""
+"""File name of the paper's tuner in ``teleopkit/data``: trained under the closed form's
+frozen-gain certificate, which does not cover the schedules it plays
+(``examples/train_pretrained.py``)."""
 
-PRETRAINED_SCHEDULED = "td3_scheduled_policy.npz"
-"""File name of the shipped policy trained under a scheduled class (its metadata names it),
-which covers every schedule the safety layer lets through
-(``examples/compare_certified_tuners.py``)."""
+PRETRAINED_COVERED = "td3_covered_policy.npz"
+"""File name of the shipped tuner trained under a certificate whose class covers every schedule
+the safety layer lets through (its metadata holds the certificate;
+``examples/train_covered.py``)."""
 
 
 class GainPolicy:
@@ -143,8 +144,7 @@ class GainPolicy:
         Parameters
         ----------
         name : str
-            :data:`PRETRAINED` (``examples/train_pretrained.py``) or
-            :data:`PRETRAINED_SCHEDULED`.
+            :data:`PRETRAINED` (the paper's tuner) or :data:`PRETRAINED_COVERED`.
 
         Returns
         -------

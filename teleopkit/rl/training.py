@@ -52,8 +52,12 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
 
-__all__ = ["BEST_POLICY", "CHECKPOINT", "LOG", "POLICY", "TrainConfig", "TrainResult",
-           "load_checkpoint", "train"]
+__all__ = ["BEST_POLICY", "CHECKPOINT", "COVERING_CLASS", "LOG", "POLICY", "TrainConfig",
+           "TrainResult", "load_checkpoint", "train"]
+
+COVERING_CLASS = "tank:3"
+"""The gain class ``teleopkit train`` trains under by default: its certificate covers every
+schedule the tuner plays (``examples/train_covered.py`` measures the recipe)."""
 
 CHECKPOINT = "checkpoint.pt"
 """File name of the checkpoint in the output directory."""
@@ -367,9 +371,10 @@ class _Run:
                 "unsafe_actions": counters.unsafe_actions}
 
     def _metadata(self) -> dict[str, Any]:
-        """Training settings and length (rounds of training behind the policy)."""
+        """Training settings and length, and the certificate trained under (evaluation reads it)."""
         return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds,
-                "gain_variation": self.env.certificate.gain_variation}
+                "gain_variation": self.env.certificate.gain_variation,
+                "certificate": self.env.certificate.to_dict()}
 
     def policy(self) -> GainPolicy:
         """The current actor with the training settings as metadata."""

@@ -54,6 +54,10 @@ class SearchSpace:
         Gain hold period.
     divergence_radius : float
         Position magnitude (rad) that counts as divergence.
+    controller : callable, optional
+        A gain controller (for example a trained policy,
+        :class:`~teleopkit.rl.policy.GainPolicy`) that picks the gains in closed loop through
+        the certificate's safety layer; the adversary then chooses the delays only.
     """
 
     params: TeleoperatorParams
@@ -65,6 +69,7 @@ class SearchSpace:
     dt: float = DEFAULT_DT
     control_period: float = CONTROL_PERIOD
     divergence_radius: float = DIVERGENCE_RADIUS
+    controller: Any = None
 
     def __post_init__(self) -> None:
         if self.certificate.box.n_joints != self.params.n_joints:
@@ -79,7 +84,7 @@ class SearchSpace:
             raise ValueError(f"duration must be positive, got {self.duration}")
         if self.delays not in ("square", "segments"):
             raise ValueError(f"delays must be 'square' or 'segments', got {self.delays!r}")
-        if self.switching is None:
+        if self.switching is None or self.controller is not None:
             object.__setattr__(self, "switching", self.variation.covers_changes)
         if self.variation.scheduled:  # the plant as the storage's proof assumes it
             n = self.params.n_joints
@@ -96,7 +101,8 @@ class SearchSpace:
     def covered(self) -> bool:
         """Whether every run of the space lies within what the certificate covers."""
         frozen_only = self.variation.kind == "frozen"
-        return bool(self.certificate.polytope_certified and not (self.switching and frozen_only))
+        changes = self.switching or self.controller is not None
+        return bool(self.certificate.polytope_certified and not (changes and frozen_only))
 
     @property
     def rate(self) -> float:
@@ -106,14 +112,17 @@ class SearchSpace:
 
     @property
     def gain_points(self) -> int:
-        """Gain points per run: one per segment when switching, else one."""
+        """Gain points per run: one per segment when switching, else one; none with a controller."""
+        if self.controller is not None:
+            return 0
         return self.segments if self.switching else 1
 
     @property
     def blocks(self) -> dict[str, int]:
         """Lengths of the parts of a decision vector, in order."""
         n, k = self.params.n_joints, self.segments
-        uses_times = self.switching or self.delays == "segments"
+        uses_times = ((self.switching and self.controller is None)
+                      or self.delays == "segments")
         return {"times": k - 1 if uses_times else 0,
                 "delays": 2 * k if self.delays == "segments" else 8,
                 "gains": 2 * n * self.gain_points,
@@ -128,8 +137,8 @@ class SearchSpace:
         return math.exp(variation.value) if variation.kind == "scheduled" else 1.0
 
     def layer(self) -> SafetyLayer:
-        """The projection the adversary's gains go through (the class's layer when scheduled)."""
-        if self.variation.scheduled:
+        """The projection the gains go through: the class's own layer (scheduled, controller)."""
+        if self.variation.scheduled or self.controller is not None:
             return layer_for(self.certificate, self.control_period)
         return PolytopeLayer(self.certificate.polytope)
 
@@ -205,8 +214,10 @@ def _delay_profiles(space: SearchSpace, u: np.ndarray,
 
 
 def _gain_points(space: SearchSpace, u: np.ndarray, layer: SafetyLayer) -> np.ndarray:
-    """Gains ``(B, K, 2 n)`` from their block: bounding-box points projected on the polytope."""
+    """Gains ``(B, K, 2 n)``: bounding-box points projected (none when a controller picks)."""
     batch, n = u.shape[0], space.params.n_joints
+    if space.controller is not None:
+        return np.zeros((batch, 0, 2 * n))
     vertices = space.certificate.polytope.vertices()
     low, high = vertices.min(axis=0), vertices.max(axis=0)
     raw = low + u.reshape(batch * space.gain_points, 2 * n) * (high - low)

@@ -53,6 +53,8 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.evaluation import closed_loop
 from teleopkit.robustness.adversary import Decision, SearchSpace, decode, gain_schedule
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
@@ -78,6 +80,12 @@ def _simulate(space: SearchSpace, decision: Decision) -> tuple[Trajectory, np.nd
     """Run a batch of adversarial scenarios: the trajectory and the budget or tank levels."""
     scenario = Scenario(space.params, decision.forward, decision.backward,
                         decision.reference_gains)
+    if space.controller is not None:
+        config = FlexTeleopConfig(params=space.params, certificate=space.certificate,
+                                  episode_length=space.duration, dt=space.dt,
+                                  control_period=space.control_period)
+        run = closed_loop(space.controller, scenario, config)
+        return run.trajectory, run.levels
     sim = Simulator(scenario, space.dt, space.control_period)
     if space.variation.scheduled:
         return CertifiedLoop(space.layer()).run(sim, gain_schedule(space, decision))

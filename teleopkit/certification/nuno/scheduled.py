@@ -19,6 +19,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.nuno.condition import NUNO_EPS, nuno_joint_margins, nuno_polytope
+from teleopkit.certification.nuno.guarantee import resolve_tank
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import TeleoperatorParams, plant_record
@@ -121,6 +122,8 @@ def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, t
     if not variation.scheduled:
         raise ValueError(f"certify_scheduled covers scheduled:L and tank, not {variation}")
     storage = ScheduledStorage.for_plant(params, tl_max, tr_max)
+    variation = resolve_tank(params, storage, scheduled_set(params, storage, box, variation),
+                             variation)
     allowed = scheduled_set(params, storage, box, variation)
     n = box.n_joints
     box_high = float(np.min(box.upper[:n] / np.array(storage.shape)))
