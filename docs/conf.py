@@ -125,7 +125,7 @@ sphinx_gallery_conf = {
     "examples_dirs": str(ROOT / "examples"),
     "gallery_dirs": "auto_examples",
     "filename_pattern": r"/plot_",
-    "ignore_pattern": r"(train_pretrained|compare_certified_tuners)\.py",  # training scripts
+    "ignore_pattern": r"(train_pretrained|train_covered|compare_certified_tuners)\.py",  # long runs
     "within_subsection_order": "tutorial_order.TutorialOrder",
     "download_all_examples": False,
     "remove_config_comments": True,

@@ -140,7 +140,18 @@ class Comparators:
 
     @staticmethod
     def key(certificate: GainCertificate) -> str:
-        """What identifies the certificate the comparators belong to."""
+        """What identifies the certificate the comparators belong to.
+
+        Parameters
+        ----------
+        certificate : GainCertificate
+            A certificate.
+
+        Returns
+        -------
+        str
+            Its plant fingerprint, box, gain class and delay bounds, as JSON text.
+        """
         return json.dumps([certificate.plant.get("fingerprint"), certificate.box.to_dict(),
                            certificate.gain_variation, list(certificate.delay_bounds)])
 
