@@ -14,25 +14,35 @@ storage never rising), the tuner's mean gain schedule replayed open loop, and th
 gains. The delay shapes: the paper's profile (as in training), constant 0.6 s, fast switching
 between 0 and 1 s every 50 ms, a slow sinusoid between 0.25 and 0.95 s, and a recorded-style
 trace with jitter and spikes; the scenario seeds are apart from every training and validation
-seed. It prints one table per shape and scenario seed (several policies: mean over them, with
-the spread over seeds) and writes ``summary.csv`` under ``--out``.
+seed. ``--starts`` adds initial states training never saw (every scenario of training starts
+from the paper's ``q_l = (-0.2, 0.2)``, ``q_r = (-0.1, 0.1)``, ``theta = 0``): ``rest`` (all at
+zero), ``aligned`` (all at ``q_l(0)``: no spring deflection) and ``deflected`` (twice the
+paper's deflection). It prints one table per case (several policies: mean over them, with the
+spread over seeds) and writes ``summary.csv`` under ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import torch
 
+from teleopkit.model.params import InitialState, paper_setup
 from teleopkit.rl.comparison import REFERENCE, Comparators, compare, policy_certificate
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import summarise, to_markdown
 from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
 
 METRICS = ("cost", "cost_opening", "cost_rest", "rms_track", "rms_damp")
+
+STARTS = {"paper": InitialState(), "rest": InitialState((0.0, 0.0), (0.0, 0.0), (0.0, 0.0)),
+          "aligned": InitialState((-0.2, 0.2), (-0.2, 0.2), (-0.2, 0.2)),
+          "deflected": InitialState((-0.3, 0.3), (-0.2, 0.2), (0.0, 0.0))}
+"""Initial states: the paper's and three that training never saw."""
 
 
 def recorded_style_trace(path: Path, seed: int = 0, duration: float = 60.0) -> Path:
@@ -53,6 +63,7 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[7777, 2024],
                         help="seeds of the held-out scenarios")
     parser.add_argument("--scenarios", type=int, default=32)
+    parser.add_argument("--starts", nargs="+", default=["paper"], choices=sorted(STARTS))
     parser.add_argument("--out", type=Path, default=Path("runs/compare"))
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -67,13 +78,15 @@ def main() -> None:
     delays = {"paper": "paper", "constant": "constant:0.6", "switching": "switching:0:1:50ms",
               "sine": "sine:0.6:0.35:0.2", "trace": f"csv:{trace}"}
     tables = []
-    for seed in args.seeds:
-        for shape, delay in delays.items():
-            summary = summarise(compare(policies, args.scenarios, seed, certificate, delay,
-                                        comparators=comparators))
-            tables.append(summary.assign(delay=shape, scenario_seed=seed))
-            print(f"\ndelays: {shape}, scenario seed {seed}", flush=True)
-            print(to_markdown(summary, METRICS, baseline=REFERENCE), flush=True)
+    cases = [(start, seed, shape) for start in args.starts for seed in args.seeds
+             for shape in (delays if start == "paper" else ["paper"])]
+    for start, seed, shape in cases:
+        params = replace(paper_setup(), initial=STARTS[start])
+        summary = summarise(compare(policies, args.scenarios, seed, certificate, delays[shape],
+                                    comparators=comparators, params=params))
+        tables.append(summary.assign(delay=shape, scenario_seed=seed, start=start))
+        print(f"\nstart: {start}, delays: {shape}, scenario seed {seed}", flush=True)
+        print(to_markdown(summary, METRICS, baseline=REFERENCE), flush=True)
     pd.concat(tables).to_csv(args.out / "summary.csv")
 
 

@@ -32,6 +32,7 @@ import pandas as pd
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.verification import load_certificate
+from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.rl.baselines import (
     BASELINE_SEED,
     best_semi_active,
@@ -270,8 +271,8 @@ class Comparators:
 def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVAL_SEED,
             certificate: GainCertificate | None = None, delay: str = "paper",
             duration: float = 40.0, comparators: Comparators | None = None,
-            others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None
-            ) -> pd.DataFrame:
+            others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None,
+            params: TeleoperatorParams | None = None) -> pd.DataFrame:
     """Per-scenario metrics of a tuner and its comparators on the same held-out scenarios.
 
     Parameters
@@ -294,6 +295,9 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     others : mapping, optional
         More controllers by name, each with its settings (for example a tuner of another
         class).
+    params : TeleoperatorParams, optional
+        The teleoperator (the paper's by default), for example with another initial state: it
+        must be the plant the certificate records.
 
     Returns
     -------
@@ -306,7 +310,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     certificate = certificate if certificate is not None else policy_certificate(policies[0])
     for policy in policies:
         check_covers(certificate, policy)
-    config = FlexTeleopConfig(certificate=certificate, episode_length=duration)
+    config = FlexTeleopConfig(params=params or paper_setup(), certificate=certificate,
+                              episode_length=duration)
     found = (comparators or Comparators.stored(policies[0], certificate)
              or Comparators.find(policies[0], certificate, config))
     rows = {f"TD3 ({certificate.gain_variation})": (list(policies), config),
