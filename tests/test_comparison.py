@@ -10,7 +10,13 @@ import torch
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.certification.gain_classes import parse_gain_variation
-from teleopkit.rl.comparison import REFERENCE, Comparators, check_covers, compare, policy_certificate
+from teleopkit.rl.comparison import (
+    REFERENCE,
+    Comparators,
+    check_covers,
+    compare,
+    policy_certificate,
+)
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.td3 import TD3
 

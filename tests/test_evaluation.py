@@ -19,8 +19,8 @@ from teleopkit.cli import main
 from teleopkit.model.params import paper_setup
 from teleopkit.rl.baselines import FIXED_GAINS, best_static_gains, fixed_gains, static_cost
 from teleopkit.rl.comparison import policy_certificate
-from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import evaluate, rollout, save_report
 from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
 from teleopkit.rl.td3 import TD3
@@ -242,3 +242,33 @@ def test_reproduce_command_writes_figures_and_table(tmp_path):
     names = {p.name for p in tmp_path.iterdir()}
     assert {"delay_profile.png", "adaptive_gains.png", "positions.png", "tracking_error.png",
             "damping_error.png", "summary.md", "summary.csv"} <= names
+
+
+def test_evaluate_refuses_a_certificate_that_does_not_cover_the_policy(tmp_path, capsys):
+    from importlib import resources
+
+    frozen = tmp_path / "frozen.json"
+    frozen.write_text(default_certificate().to_json())
+    with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED_COVERED) as path:
+        code = main(["evaluate", "--policy", str(path), "--certificate", str(frozen),
+                     "--out", str(tmp_path / "out")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert "class frozen does not cover the policy's class tank:3" in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_evaluate_runs_unseen_delay_shapes_under_the_policy_certificate(tmp_path):
+    from importlib import resources
+
+    with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED_COVERED) as path:
+        done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration",
+                         "0.5", "--delay", "switching:0:1:50ms", "--seed", "99", "--out",
+                         str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    summary = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)
+    assert summary.index[0] == "TD3 (tank:3)" and summary.loc["best static", "certificate"] == \
+        "frozen"
+    assert {"semi-active (tank:3)", "open-loop (tank:3)"} <= set(summary.index)
+    assert summary["covered"].all() and summary["unsafe_actions"].sum() == 0
+    assert "finding the comparators" not in done.stderr  # stored with the policy
