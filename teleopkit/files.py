@@ -1,16 +1,23 @@
-"""Files written so that a crash never leaves a half-written one: the one atomic write."""
+"""Files written so that a crash never leaves a half-written one, and directories one run owns.
+
+:func:`atomic_write` is the one atomic write; :func:`run_lock` keeps a second run out of a
+directory (or an output) while one uses it, and recognises the lock of a run that was killed.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
+import socket
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["atomic_write", "write_csv"]
+__all__ = ["RunLocked", "atomic_write", "run_lock", "write_csv"]
 
 
 def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> None:
@@ -54,3 +61,75 @@ def write_csv(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
     matrix = np.column_stack([np.asarray(v, dtype=float) for v in columns.values()]).tolist()
     lines = [",".join(columns), *(",".join(map(repr, row)) for row in matrix)]
     atomic_write(path, lambda tmp: tmp.write_text("\n".join(lines) + "\n"))
+
+
+class RunLocked(RuntimeError):
+    """Another live run holds the lock (the message names it)."""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # it exists, under another user
+        return True
+    return True
+
+
+def _holder(lock: Path) -> dict[str, Any] | None:
+    """The live run that holds ``lock``, or None (no lock, or the lock of a dead run)."""
+    try:
+        holder = json.loads(lock.read_text())
+        pid, host = int(holder["pid"]), str(holder["host"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if host != socket.gethostname():  # another machine's run: assume it lives
+        return holder
+    return holder if pid != os.getpid() and _alive(pid) else None
+
+
+@contextlib.contextmanager
+def run_lock(lock: str | Path, what: str) -> Iterator[None]:
+    """Hold the lock file ``lock`` while the block runs; refuse at once if a live run holds it.
+
+    The lock records the process id and host. A lock left by a run that was killed (its process
+    is gone) is taken over; the lock is removed when the block ends, however it ends.
+
+    Parameters
+    ----------
+    lock : str or Path
+        The lock file (its directory must exist).
+    what : str
+        What is locked, for the message (for example ``"runs/train"``).
+
+    Yields
+    ------
+    None
+        While the lock is held.
+
+    Raises
+    ------
+    RunLocked
+        If a live run holds it: one line naming the run.
+    """
+    path = Path(lock)
+    record = json.dumps({"pid": os.getpid(), "host": socket.gethostname()})
+    for _ in range(2):
+        try:
+            with open(path, "x", encoding="utf-8") as handle:
+                handle.write(record)
+            break
+        except FileExistsError:
+            holder = _holder(path)
+            if holder is not None:
+                raise RunLocked(f"{what} is in use by another run (process {holder['pid']} on "
+                                f"{holder['host']}); wait for it to end or choose another "
+                                "output") from None
+            path.unlink(missing_ok=True)  # a killed run's lock
+    else:
+        raise RunLocked(f"{what}: could not take the lock {path}")
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)

@@ -104,9 +104,15 @@ def _finish(fig: Figure, axes: list[Any], path: Path) -> Path:
     return path
 
 
-def _styles(runs: Mapping[str, pd.DataFrame]) -> list[tuple[str, pd.DataFrame, str]]:
-    """Name, table and line style of each run (the first solid, the others dashed/dotted)."""
-    return [(name, table, _LINE_STYLES[i % len(_LINE_STYLES)])
+def _styles(runs: Mapping[str, pd.DataFrame]) -> list[tuple[str, pd.DataFrame, dict[str, Any]]]:
+    """Name, table and line style of each run.
+
+    The first is solid, thicker and drawn on top of the others (dashed, dotted), which would
+    otherwise hide it where they agree.
+    """
+    return [(name, table, {"ls": _LINE_STYLES[i % len(_LINE_STYLES)],
+                           "lw": 1.6 if i == 0 else 1.0, "zorder": 3 if i == 0 else 2,
+                           "alpha": 1.0 if i == 0 else 0.8})
             for i, (name, table) in enumerate(runs.items())]
 
 
@@ -133,7 +139,8 @@ def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) ->
     main_name, main = next(iter(runs.items()))
     n = _joints(main)
     paths = []
-    fig, axes = _figure(1, "Communication channel delay profile")
+    fig, axes = _figure(1, "Communication channel delay profile (the paper's profile, scaled by "
+                           "the scenario's delay scales)")
     axes[0].plot(main["t"], main["Tl"], label=r"$T_l$ (forward)")
     axes[0].plot(main["t"], main["Tr"], label=r"$T_r$ (backward)")
     axes[0].set_ylabel("delay [s]")
@@ -141,8 +148,8 @@ def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) ->
     fig, axes = _figure(2, r"Remote gains: proportional $K_r^i$ and damping $B_r^i$")
     for name, table, style in _styles(runs):
         for i in range(1, n + 1):
-            axes[0].plot(table["t"], table[f"Kr_{i}"], style, label=f"{name}, joint {i}")
-            axes[1].plot(table["t"], table[f"Br_{i}"], style, label=f"{name}, joint {i}")
+            axes[0].plot(table["t"], table[f"Kr_{i}"], **style, label=f"{name}, joint {i}")
+            axes[1].plot(table["t"], table[f"Br_{i}"], **style, label=f"{name}, joint {i}")
     axes[0].set_ylabel(r"$K_r$ [N m/rad]")
     axes[1].set_ylabel(r"$B_r$ [N m s/rad]")
     paths.append(_finish(fig, axes, directory / "adaptive_gains.png"))
@@ -159,7 +166,7 @@ def save_paper_figures(runs: Mapping[str, pd.DataFrame], out_dir: str | Path) ->
         fig, axes = _figure(n, title)
         for name, table, style in _styles(runs):
             for i in range(1, n + 1):
-                axes[i - 1].plot(table["t"], table[f"{column}_{i}"], style, label=name)
+                axes[i - 1].plot(table["t"], table[f"{column}_{i}"], **style, label=name)
                 axes[i - 1].set_ylabel(f"joint {i} [rad]")
         paths.append(_finish(fig, axes, directory / filename))
     return paths

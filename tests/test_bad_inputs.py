@@ -432,5 +432,5 @@ def test_campaign_runs_synchronously_without_dask(tmp_path, monkeypatch):
     assert len(table) == 3
 
 
-def test_there_are_at_least_25_cases():
+def test_there_are_at_least_50_cases():
     assert len(CLI_CASES) + len(API_CASES) >= 50

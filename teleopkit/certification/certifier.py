@@ -55,6 +55,10 @@ def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         variation = parse_gain_variation(variation)
     if box.n_joints != params.n_joints:
         raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
+    for i, (_, high) in enumerate(box.kr):
+        if high <= 0:
+            raise ValueError(f"K_r of joint {i + 1} is 0 everywhere in the box: a remote arm "
+                             "without stiffness does not follow the local one (nothing to certify)")
     tl_max, tr_max = check_delay_bounds(tl_max, tr_max)
     lower = check_delay_floors(tl_min, tr_min, tl_max, tr_max)
     checked: GainVariation = variation

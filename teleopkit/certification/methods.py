@@ -14,7 +14,7 @@ from __future__ import annotations
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.nuno.condition import certify_closed_form
+from teleopkit.certification.nuno.condition import certify_frozen
 from teleopkit.certification.nuno.scheduled import certify_scheduled
 from teleopkit.model.params import TeleoperatorParams
 
@@ -102,5 +102,5 @@ def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: fl
         return certify_lmi(params, box, tl_max, tr_max, variation, delay_lower)
     if name != "nuno":
         raise ValueError(f"unknown method {name!r}; available: nuno, lmi")
-    certify = certify_scheduled if variation.scheduled else certify_closed_form
+    certify = certify_scheduled if variation.scheduled else certify_frozen
     return certify(params, box, tl_max, tr_max, variation)

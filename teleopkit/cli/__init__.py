@@ -2,8 +2,8 @@
 
 Exit codes: 0 success (or certified), 1 ran but the answer is negative (not certified, unsafe
 actions, a falsification finding), 2 bad input with a one-line message on standard error and no
-traceback. Each subcommand imports what it needs when it runs, so ``teleopkit --help`` starts
-at once; :mod:`~teleopkit.cli.options` holds what they share.
+traceback, 130 interrupted (Ctrl-C), with one line. Each subcommand imports what it needs when it
+runs, so ``teleopkit --help`` starts at once; :mod:`~teleopkit.cli.options` holds what they share.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from teleopkit.cli.certificates import certify
 from teleopkit.cli.robustness import campaign_command, falsify_command
 from teleopkit.cli.simulate import simulate
 from teleopkit.cli.tuning import evaluate_command, reproduce_command, train_command
+from teleopkit.files import RunLocked
 
 __all__ = ["cli", "main"]
 
@@ -52,11 +53,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except click.ClickException as error:
         click.echo(f"teleopkit: error: {error.format_message()}", err=True)
         return 2
-    except (ValueError, OSError, ImportError) as error:
+    except (ValueError, OSError, ImportError, RunLocked) as error:
         message = str(error).splitlines()[0] if str(error) else type(error).__name__
         click.echo(f"teleopkit: error: {message}", err=True)
         return 2
-    except click.exceptions.Abort:
-        click.echo("teleopkit: aborted", err=True)
-        return 1
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        click.echo("teleopkit: interrupted (what was finished is kept; --resume continues a "
+                   "training or a campaign)", err=True)
+        return 130
     return int(result) if isinstance(result, int) else 0

@@ -13,6 +13,7 @@ import math
 import os
 import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -120,8 +121,22 @@ def delay_spec(ctx: click.Context | None, param: click.Parameter | None, value: 
     return value
 
 
+def _probe(directory: Path) -> str | None:
+    """Why a file cannot be created in ``directory`` (the OS's words), or None if it can."""
+    try:
+        handle, name = tempfile.mkstemp(prefix=".teleopkit-probe-", dir=directory)
+    except OSError as error:
+        return error.strerror or str(error)
+    os.close(handle)
+    os.unlink(name)
+    return None
+
+
 def check_output(path: Path, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
     """Refuse an output file that cannot be written, before anything runs.
+
+    A file is created in its directory and removed again: the message is the operating
+    system's own reason (a read-only or pseudo file system says so).
 
     Parameters
     ----------
@@ -145,8 +160,11 @@ def check_output(path: Path, option: str, suffixes: tuple[str, ...] | None = Non
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise _bad(option, f"directory {parent} does not exist")
-    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise _bad(option, f"{path} is not writable")
+    reason = _probe(parent)
+    if reason is None and path.exists() and not os.access(path, os.W_OK):
+        reason = "Permission denied"
+    if reason is not None:
+        raise _bad(option, f"cannot write {path}: {reason}")
     return path
 
 
@@ -170,8 +188,11 @@ def check_output_dir(path: Path, option: str) -> Path:
     existing = path
     while not existing.exists():
         existing = existing.parent
-    if not existing.is_dir() or not os.access(existing, os.W_OK):
-        raise _bad(option, f"{existing} is not a writable directory")
+    if not existing.is_dir():
+        raise _bad(option, f"{existing} is not a directory")
+    reason = _probe(existing)
+    if reason is not None:
+        raise _bad(option, f"cannot write in {existing}: {reason}")
     return path
 
 

@@ -67,3 +67,20 @@ def simulate(kr: list[float], br: list[float], duration: float, delay: str, seed
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
     click.echo(f"wrote {len(trajectory.t)} rows to {out}; RMS tracking error {rms:.4g} rad")
+    _warn_beyond_margin(np.array(kr + br), float(trajectory.delays.max()))
+
+
+def _warn_beyond_margin(gains: np.ndarray, longest: float) -> None:
+    """One line on standard error when the run's delays exceed what its gains are certified for.
+
+    ``simulate`` runs any gains (it is a simulator, not a safety layer); ``train``, ``evaluate``
+    and ``campaign`` refuse a certificate whose delay bound the delays can exceed.
+    """
+    from teleopkit.certification.nuno.condition import nuno_joint_margins
+    from teleopkit.model.params import paper_setup
+
+    margin = float(nuno_joint_margins(paper_setup(), gains).min())
+    if longest > margin:
+        click.echo(f"warning: the delays reached {longest:.4g} s; these gains are certified "
+                   f"(closed form, constant gains) for delays up to {margin:.4g} s only, so this "
+                   "run is outside every certificate", err=True)

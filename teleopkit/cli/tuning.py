@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
+from click.core import ParameterSource
 
 from teleopkit.cli.options import (
     certificate_option,
@@ -17,38 +21,45 @@ from teleopkit.cli.options import (
 from teleopkit.model.params import paper_setup
 from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, PAPER_DELAY_FLOOR
 
+if TYPE_CHECKING:
+    from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.rl.training import TrainConfig
+
 __all__ = ["evaluate_command", "reproduce_command", "train_command"]
 
 
 @click.command("train")
 @click.option("--steps", type=click.IntRange(min=1), default=1_600_000, show_default=True,
               help="Transitions to collect over all environments (rounded up to whole "
-                   "episodes of every environment).")
+                   "rounds: one episode of every environment).")
 @click.option("--envs", type=click.IntRange(min=1), default=16, show_default=True,
               help="Scenarios simulated together.")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Master seed of the run.")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/train", show_default=True,
-              help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz "
-                   "and config.json.")
-@click.option("--resume", is_flag=True, help="Continue the checkpoint in --out.")
+              help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz, "
+                   "config.json and certificate.json.")
+@click.option("--resume", is_flag=True,
+              help="Continue the run in --out with its recorded settings and certificate "
+                   "(--steps may change the length).")
 @click.option("--gain-variation", "variation", default=None, callback=gain_variation,
               help="Gain class to train under, on the closed form's certificate of the default "
                    "box (K_r in [1, 50], B_r in [1, 150], T* = 1 s) [default: the recipe's "
                    "covering class, teleopkit.rl.training.COVERING_CLASS].")
 @certificate_option
-def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
+@click.pass_context
+def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Path, resume: bool,
                   variation: object, certificate: Path | None) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
     By default it trains under a class whose certificate covers every schedule the tuner plays
     (the certificate is recorded in the policy files, and evaluate uses it). The other settings
     are the defaults of teleopkit.rl.training.TrainConfig: 40 s episodes, the paper's TD3 with
-    learning rates 1e-3 and discount 0.95, best policy kept by validation cost.
+    learning rates 1e-3 and discount 0.95, best policy kept by validation cost; the first round
+    explores with uniform random gains.
     """
-    from teleopkit.certification.certifier import default_certificate
     from teleopkit.rl.env import FlexTeleopConfig
-    from teleopkit.rl.training import CHECKPOINT, COVERING_CLASS, TrainConfig, train
+    from teleopkit.rl.training import CHECKPOINT, train
 
     check_output_dir(out, "--out")
     if certificate is not None and variation is not None:
@@ -57,20 +68,86 @@ def train_command(steps: int, envs: int, seed: int, out: Path, resume: bool,
     if resume and not (out / CHECKPOINT).is_file():
         raise click.BadParameter(f"no checkpoint in {out} ({CHECKPOINT}); leave --resume out "
                                  "to start a run there", param_hint="'--resume'")
-    chosen = (read_certificate(certificate) if certificate is not None
-              else default_certificate(variation=variation or COVERING_CLASS))
+    chosen = _training_certificate(out, resume, variation, certificate)
+    recipe = _training_config(ctx, out, resume, steps, envs, seed)
+    per_round = recipe.num_envs * FlexTeleopConfig().max_steps
+    if recipe.total_steps % per_round:
+        rounded = -(-recipe.total_steps // per_round) * per_round
+        click.echo(f"--steps {recipe.total_steps} is rounded up to {rounded} transitions: whole "
+                   f"rounds of {recipe.num_envs} scenarios x {per_round // recipe.num_envs} "
+                   "control periods", err=True)
+        recipe = replace(recipe, total_steps=rounded)
+    click.echo(f"training under {chosen.gain_variation} ({chosen.variation.describe()}) on the "
+               "certified set of the box " + _box_text(chosen), err=True)
+    single_thread()
+    result = train(recipe, out, resume=resume, env_config=FlexTeleopConfig(certificate=chosen))
+    row = result.log.iloc[-1]
+    click.echo(f"trained {int(row['step'])} steps under {chosen.gain_variation}; best "
+               f"validation cost {result.log['validation_cost'].min():.5g}; policies in {out}")
+
+
+def _box_text(certificate: GainCertificate) -> str:
+    """The certificate's box, and whether the whole box or only its polytope is certified."""
+    box = certificate.box
+    ranges = ", ".join(f"K_r{i + 1} in [{box.kr[i][0]:g}, {box.kr[i][1]:g}], B_r{i + 1} in "
+                       f"[{box.br[i][0]:g}, {box.br[i][1]:g}]" for i in range(box.n_joints))
+    return ranges + ("" if certificate.certified else
+                     " (the whole box is not certified: the safety layer projects onto its "
+                     "certified polytope, shown by teleopkit certify)")
+
+
+def _training_certificate(out: Path, resume: bool, variation: object,
+                          certificate: Path | None) -> GainCertificate:
+    """The certificate to train under: the run's recorded one on resume, else the one asked for.
+
+    A resumed run keeps its certificate; another one asked for on resume is refused by the
+    checkpoint's settings check, which names it.
+    """
+    from teleopkit.certification.certifier import default_certificate
+    from teleopkit.rl.training import CERTIFICATE, COVERING_CLASS
+
+    if certificate is not None:
+        chosen = read_certificate(certificate)
+    elif variation is not None or not (resume and (out / CERTIFICATE).is_file()):
+        chosen = default_certificate(variation=variation or COVERING_CLASS)  # type: ignore
+    else:
+        chosen = read_certificate(out / CERTIFICATE)
     try:
         chosen.check(paper_setup(), PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
                      (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
-    single_thread()
-    recipe = TrainConfig(total_steps=steps, num_envs=envs, seed=seed,
-                         learning_starts=max(envs, min(TrainConfig.learning_starts, steps)))
-    result = train(recipe, out, resume=resume, env_config=FlexTeleopConfig(certificate=chosen))
-    row = result.log.iloc[-1]
-    click.echo(f"trained {int(row['step'])} steps under {chosen.gain_variation}; best "
-               f"validation cost {result.log['validation_cost'].min():.5g}; policies in {out}")
+    return chosen
+
+
+def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, envs: int,
+                     seed: int) -> TrainConfig:
+    """The run's settings: recorded ones on resume (with the new length), else the recipe's.
+
+    The warm-up (uniform random gains) is the first round, or the first half of a run of one
+    round; a resumed run keeps the warm-up it was started with.
+    """
+    from teleopkit.rl.env import FlexTeleopConfig
+    from teleopkit.rl.training import CONFIG, TrainConfig
+
+    if resume and (out / CONFIG).is_file():
+        try:
+            recorded = TrainConfig.from_dict(json.loads((out / CONFIG).read_text()))
+        except (OSError, ValueError, TypeError, KeyError) as error:
+            raise click.BadParameter(f"cannot read {out / CONFIG}: {error}",
+                                     param_hint="'--resume'") from None
+        for name, value in (("envs", envs), ("seed", seed)):
+            given = ctx.get_parameter_source(name) is not ParameterSource.DEFAULT
+            field = "num_envs" if name == "envs" else name
+            if given and getattr(recorded, field) != value:
+                raise click.BadParameter(f"the run in {out} has --{name} "
+                                         f"{getattr(recorded, field)}; a resumed run keeps its "
+                                         "settings (only --steps may change)",
+                                         param_hint=f"'--{name}'")
+        return replace(recorded, total_steps=steps)
+    per_round = envs * FlexTeleopConfig().max_steps
+    warm_up = per_round if steps > per_round else max(envs, per_round // 2)
+    return TrainConfig(total_steps=steps, num_envs=envs, seed=seed, learning_starts=warm_up)
 
 
 @click.command("evaluate")
@@ -108,6 +185,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
         check_covers,
         compare,
         policy_certificate,
+        report_preamble,
     )
     from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.evaluation import save_report, to_markdown
@@ -139,7 +217,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
                                        FlexTeleopConfig(certificate=chosen,
                                                         episode_length=duration))
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators)
-    summary = save_report(per_scenario, out, baseline=REFERENCE)
+    preamble = report_preamble(comparators, scenarios, seed, delay,
+                               f"TD3 ({chosen.gain_variation})", len(policies), duration)
+    summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble)
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")

@@ -44,7 +44,8 @@ from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate, rollout
 from teleopkit.rl.policy import GainPolicy
 
-__all__ = ["REFERENCE", "Comparators", "check_covers", "compare", "policy_certificate"]
+__all__ = ["REFERENCE", "Comparators", "check_covers", "compare", "policy_certificate",
+           "report_preamble"]
 
 REFERENCE = "best static"
 """Name of the reference row: the best static gains of the frozen class."""
@@ -319,3 +320,75 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}
     return evaluate(controllers, scenarios, seed, config, settings, delay)  # type: ignore
+
+
+def _gains(values: np.ndarray) -> str:
+    n = len(values) // 2
+    return (f"K_r = ({', '.join(f'{v:.3g}' for v in values[:n])}), "
+            f"B_r = ({', '.join(f'{v:.3g}' for v in values[n:])})")
+
+
+def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: str,
+                    tuner: str, policies: int = 1, duration: float = 40.0,
+                    others: Mapping[str, str] | None = None) -> str:
+    """The opening of ``summary.md``: what was compared, and what its words mean.
+
+    Parameters
+    ----------
+    comparators : Comparators
+        The comparators of the table.
+    scenarios, seed : int
+        Held-out scenarios and their seed.
+    delay : str
+        Delay profiles of the scenarios.
+    tuner : str
+        Name of the tuner's row.
+    policies : int
+        Policies (training seeds) behind the tuner's row.
+    duration : float
+        Episode length in seconds.
+    others : mapping of str to str, optional
+        More rows by name, with a sentence each.
+
+    Returns
+    -------
+    str
+        Markdown paragraphs.
+    """
+    lines = [
+        "# Comparison of gain controllers",
+        "",
+        f"Every row ran the same {scenarios} held-out scenarios (seed {seed}; operator reference "
+        f"gains and delay scales no training saw; delays: {delay}), {duration:g} s each, "
+        f"every applied gain projected by the safety layer of the row's certificate. `{tuner}` "
+        f"is the trained tuner ({policies} polic{'y' if policies == 1 else 'ies'}); "
+        f"`{REFERENCE}` the best constant gains of the frozen class on the default box "
+        f"({_gains(comparators.frozen_static)}), the reference of the last column; "
+        f"`fixed` the paper's gains (K_r = 10, B_r = 30).",
+    ]
+    if comparators.certificate != "frozen":
+        label = comparators.certificate
+        lines += ["", f"Of the tuner's class `{label}`: `best static ({label})` its best constant "
+                      f"gains ({_gains(comparators.class_static)}); `semi-active ({label})` a "
+                      "hand-written law, high damping while the spring deflection grows and low "
+                      "while it shrinks at a constant stiffness, its three numbers tuned on "
+                      f"training scenarios; `open-loop ({label})` the tuner's mean gain schedule "
+                      "over 16 training scenarios, replayed as a function of time alone."]
+    lines += [f"`{name}`: {text}" for name, text in (others or {}).items()]
+    lines += [
+        "",
+        "`cost` is the paper's: the sum over the episode's control periods of "
+        "alpha |e_track|^2 + beta |e_damp|^2 + gamma |gains|^2 (minus the return); "
+        "`cost_opening` its share in the first 2 s, `cost_rest` the remainder; `rms_track` and "
+        "`rms_damp` the RMS tracking error theta_r - q_l(t - T_l) and damping error "
+        "theta_r - q_r in rad. `a ± b` is the mean over scenarios ± their standard deviation "
+        "(`seeds ± c`: the spread of the per-policy means). `certificate` is the gain class the "
+        "row ran under; `covered` says whether that class covers what the controller did with "
+        "the gains (the frozen class covers constant gains only: a tuner that switches them "
+        "under it is not covered).",
+        "",
+        "A tuner can be cheaper and track worse: the cost also charges the gains, and a tuner "
+        "that keeps its stiffness low saves more on the gain term than it loses on tracking.",
+        "",
+    ]
+    return "\n".join(lines)

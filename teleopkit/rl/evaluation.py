@@ -358,7 +358,7 @@ def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = TABLE_METRICS,
 
 
 def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
-                baseline: str | None = None) -> pd.DataFrame:
+                baseline: str | None = None, preamble: str = "") -> pd.DataFrame:
     """Write ``per_scenario.csv``, ``summary.csv`` and ``summary.md`` to ``out_dir``.
 
     Parameters
@@ -369,6 +369,8 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
         Directory (created if needed).
     baseline : str, optional
         Controller the markdown table compares costs with.
+    preamble : str
+        Markdown that ``summary.md`` opens with (what was compared, what the words mean).
 
     Returns
     -------
@@ -380,5 +382,6 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
     summary = summarise(per_scenario)
     per_scenario.to_csv(directory / "per_scenario.csv", index=False)
     summary.to_csv(directory / "summary.csv")
-    (directory / "summary.md").write_text(to_markdown(summary, baseline=baseline))
+    table = to_markdown(summary, baseline=baseline)
+    (directory / "summary.md").write_text(f"{preamble}\n{table}" if preamble else table)
     return summary

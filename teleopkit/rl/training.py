@@ -20,18 +20,19 @@ the best one is kept: the policy's held-out cost fluctuates by several per cent 
 the next.
 
 Files in ``out_dir``: ``checkpoint.pt`` (``torch.save``; loads with ``weights_only=True``),
-``train_log.csv`` (one row per round: ``step, round, episode_return, critic_loss, actor_loss,
-exploration_std, validation_cost, wall_time, unsafe_actions``; the episode return is that of the
-exploring policy, averaged over the sub-environments; ``unsafe_actions`` counts applied actions
-outside the certified set, cumulatively, and must stay 0), ``policy.npz`` (the last actor as a
-:class:`~teleopkit.rl.td3.GainPolicy`), ``best_policy.npz`` (the best by validation) and
-``config.json``. Each is written to a temporary file in the same directory and moved into place
-with :func:`os.replace`, so a kill at any moment leaves either the previous or the new complete
-file.
+``certificate.json`` (the certificate trained under), ``train_log.csv`` (one row per round: ``step,
+round, episode_return, critic_loss, actor_loss, exploration_std, validation_cost, wall_time,
+unsafe_actions``; the episode return is that of the exploring policy, averaged over the
+sub-environments; ``unsafe_actions`` counts applied actions outside the certified set, cumulatively,
+and must stay 0), ``policy.npz`` (the last actor as a :class:`~teleopkit.rl.td3.GainPolicy`),
+``best_policy.npz`` (the best by validation) and ``config.json``. Each is written to a temporary
+file in the same directory and moved into place with :func:`os.replace`, so a kill at any moment
+leaves either the previous or the new complete file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import math
@@ -46,14 +47,14 @@ import pandas as pd
 import torch
 from gymnasium.spaces import Box
 
-from teleopkit.files import atomic_write
+from teleopkit.files import atomic_write, run_lock
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
 
-__all__ = ["BEST_POLICY", "CHECKPOINT", "COVERING_CLASS", "LOG", "POLICY", "TrainConfig",
-           "TrainResult", "load_checkpoint", "train"]
+__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "COVERING_CLASS", "LOG",
+           "POLICY", "TrainConfig", "TrainResult", "load_checkpoint", "train"]
 
 COVERING_CLASS = "tank:3"
 """The gain class ``teleopkit train`` trains under by default: its certificate covers every
@@ -71,6 +72,15 @@ _RESULT_NEUTRAL = ("total_steps", "checkpoint_every")
 
 BEST_POLICY = "best_policy.npz"
 """File name of the best policy by validation cost."""
+
+CONFIG = "config.json"
+"""File name of the training settings (:meth:`TrainConfig.to_dict`) in the output directory."""
+
+CERTIFICATE = "certificate.json"
+"""File name of the certificate trained under, in the output directory."""
+
+LOCK = ".lock"
+"""Lock file of a directory a training run is using (:func:`~teleopkit.files.run_lock`)."""
 
 
 @dataclass(frozen=True)
@@ -232,6 +242,7 @@ class _Run:
         data = {k: v for k, v in self.config.to_dict().items() if k not in _RESULT_NEUTRAL}
         env_config = self.env.config
         data["reward_weights"] = asdict(env_config.weights)
+        data["certificate"] = self.env.certificate.gain_variation
         data["polytope_h"] = self.env.safety_layer.polytope.h.tolist()
         data["control_period"] = env_config.control_period
         data["dt"] = env_config.dt
@@ -248,9 +259,15 @@ class _Run:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a checkpoint written by the same configuration."""
-        if state.get("fingerprint") != self.fingerprint():
-            raise ValueError("the checkpoint was written with different settings; use the same "
-                             "configuration (only total_steps may change) or a new directory")
+        recorded, current = state.get("fingerprint") or {}, self.fingerprint()
+        if recorded != current:
+            names = [key for key in dict.fromkeys([*recorded, *current])
+                     if recorded.get(key) != current.get(key)]
+            first = names[0]
+            raise ValueError(f"the checkpoint was written with other settings ({', '.join(names)}"
+                             f"): {first} was {_short(recorded.get(first))}, now "
+                             f"{_short(current.get(first))}; only total_steps and "
+                             "checkpoint_every may change on resume (or use a new directory)")
         self.agent.load_state_dict(state["agent"])
         self.buffer.load_state_dict(state["buffer"])
         self.explore.bit_generator.state = state["explore_rng"]
@@ -397,6 +414,12 @@ class _Run:
         return pd.DataFrame(self.counters.log, columns=columns)
 
 
+def _short(value: Any) -> str:
+    """A setting's value for a one-line message (long lists cut)."""
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _save(run: _Run, out_dir: Path) -> None:
     """Checkpoint, log and policy, each atomically (checkpoint last)."""
     atomic_write(out_dir / LOG, lambda p: run.log_frame().to_csv(p, index=False))
@@ -405,6 +428,20 @@ def _save(run: _Run, out_dir: Path) -> None:
     if best is not None:
         atomic_write(out_dir / BEST_POLICY, best.save)
     atomic_write(out_dir / CHECKPOINT, lambda p: torch.save(run.state_dict(), p))
+
+
+def _prepare(run: _Run, directory: Path, resume: bool) -> None:
+    """Load the checkpoint of a resumed run (refuse one without resume); record the settings."""
+    checkpoint = directory / CHECKPOINT
+    if checkpoint.exists() and not resume:
+        raise ValueError(f"{checkpoint} exists; pass resume=True (--resume) to continue it "
+                         "or choose another directory")
+    if checkpoint.exists():
+        run.load_state_dict(load_checkpoint(checkpoint))
+    config_text = json.dumps(run.config.to_dict(), indent=2)
+    atomic_write(directory / CONFIG, lambda p: p.write_text(config_text))
+    certificate_text = run.env.certificate.to_json()
+    atomic_write(directory / CERTIFICATE, lambda p: p.write_text(certificate_text))
 
 
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
@@ -454,35 +491,33 @@ def train(config: TrainConfig, out_dir: str | Path | None = None, resume: bool =
     Raises
     ------
     ValueError
-        On an existing checkpoint without ``resume``, or a checkpoint of other settings.
+        On an existing checkpoint without ``resume``, or a checkpoint of other settings (the
+        message names them).
+    RunLocked
+        If another live run uses ``out_dir`` (:func:`~teleopkit.files.run_lock`).
     """
     from tqdm import tqdm
 
     run = _Run(config, env_config)
     directory = Path(out_dir) if out_dir is not None else None
-    if directory is not None:
-        directory.mkdir(parents=True, exist_ok=True)
-        checkpoint = directory / CHECKPOINT
-        if checkpoint.exists() and not resume:
-            raise ValueError(f"{checkpoint} exists; pass resume=True (--resume) to continue it "
-                             "or choose another directory")
-        if checkpoint.exists():
-            run.load_state_dict(load_checkpoint(checkpoint))
-        config_text = json.dumps(config.to_dict(), indent=2)
-        atomic_write(directory / "config.json", lambda p: p.write_text(config_text))
-    per_round = config.num_envs * run.env.config.max_steps
-    rounded = math.ceil(config.total_steps / per_round) * per_round
-    with tqdm(total=rounded, initial=min(run.counters.step, rounded), disable=not progress,
-              unit="step", dynamic_ncols=True) as bar:
-        while run.counters.step < config.total_steps:
-            run.run_round(bar.update)
-            last = run.counters.step >= config.total_steps
-            if directory is not None and (last or run.counters.rounds % config.checkpoint_every
-                                          == 0):
-                _save(run, directory)
-            if on_round is not None:
-                on_round(run.counters.rounds)
-            row = run.counters.log[-1]
-            bar.set_postfix(ret=f"{row['episode_return']:.4g}",
-                            std=f"{row['exploration_std']:.3g}")
+    with contextlib.ExitStack() as held:
+        if directory is not None:
+            directory.mkdir(parents=True, exist_ok=True)
+            held.enter_context(run_lock(directory / LOCK, str(directory)))
+            _prepare(run, directory, resume)
+        per_round = config.num_envs * run.env.config.max_steps
+        rounded = math.ceil(config.total_steps / per_round) * per_round
+        with tqdm(total=rounded, initial=min(run.counters.step, rounded), disable=not progress,
+                  unit="step", dynamic_ncols=True) as bar:
+            while run.counters.step < config.total_steps:
+                run.run_round(bar.update)
+                last = run.counters.step >= config.total_steps
+                if directory is not None and (
+                        last or run.counters.rounds % config.checkpoint_every == 0):
+                    _save(run, directory)
+                if on_round is not None:
+                    on_round(run.counters.rounds)
+                row = run.counters.log[-1]
+                bar.set_postfix(ret=f"{row['episode_return']:.4g}",
+                                std=f"{row['exploration_std']:.3g}")
     return TrainResult(run.agent, run.log_frame(), run.policy(), run.best_policy())

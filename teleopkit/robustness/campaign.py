@@ -18,8 +18,11 @@ Divergence is the criterion of :mod:`teleopkit.sim.divergence`.
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from teleopkit.delays.profiles import TraceDelay
-from teleopkit.files import atomic_write
+from teleopkit.files import atomic_write, run_lock
 from teleopkit.robustness.chunks import ChunkTask, check_steps, plan_chunks, simulate_chunk
 from teleopkit.robustness.factors import factor_dtypes
 from teleopkit.robustness.spec import CampaignSpec
@@ -67,9 +70,9 @@ def _run_distributed(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay
                      client: Client, done: Callable[[pd.DataFrame], None]) -> None:
     from distributed import KilledWorker, as_completed
 
-    from teleopkit.robustness.dask_workers import OneNumbaThread
+    from teleopkit.robustness.dask_workers import WorkerSetup
 
-    client.register_plugin(OneNumbaThread())
+    client.register_plugin(WorkerSetup())
     shared = client.scatter(dict(traces), broadcast=True) if traces else {}  # sent once
     futures = [client.submit(simulate_chunk, task, shared, pure=False) for task in tasks]
     try:
@@ -105,7 +108,7 @@ def local_cluster(workers: int | None = None) -> Any:
     distributed.LocalCluster
         Processes with one thread each and no dashboard (with Dask's one-thread defaults for
         OpenMP, MKL and OpenBLAS); every worker runs numba on one thread
-        (:class:`~teleopkit.robustness.dask_workers.OneNumbaThread`, set once when a campaign
+        (:class:`~teleopkit.robustness.dask_workers.WorkerSetup`, set once when a campaign
         starts on it).
     """
     from distributed import LocalCluster
@@ -129,13 +132,29 @@ def _execute(tasks: Sequence[ChunkTask], traces: Mapping[str, TraceDelay],
                                   "'teleopkit[campaign]' (or use --scheduler synchronous)"
                                   ) from None
     if client is None:
-        with local_cluster(workers) as cluster, Client(cluster) as local:
+        with local_cluster(workers) as cluster, Client(cluster) as local, _quiet_on_interrupt():
             _run_distributed(tasks, traces, local, done)
     elif isinstance(client, str):
-        with Client(client) as remote:
+        with Client(client) as remote, _quiet_on_interrupt():
             _run_distributed(tasks, traces, remote, done)
     else:
-        _run_distributed(tasks, traces, client, done)
+        with _quiet_on_interrupt():
+            _run_distributed(tasks, traces, client, done)
+
+
+@contextlib.contextmanager
+def _quiet_on_interrupt() -> Iterator[None]:
+    """On Ctrl-C, silence Dask's logs and warnings while the cluster shuts down.
+
+    Entered inside the cluster's and the client's blocks, so that it acts before they close.
+    """
+    try:
+        yield
+    except KeyboardInterrupt:
+        for name in ("distributed", "tornado", "asyncio"):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+        warnings.simplefilter("ignore")
+        raise
 
 
 def _progress(total: int, enabled: bool) -> Any:
@@ -225,24 +244,25 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     check_steps(scenarios, spec.dt, spec.control_period)
     chunks = plan_chunks(scenarios, chunk)
     store = ChunkStore(out)
-    store.prepare({"fingerprint": spec.fingerprint(), "chunk": int(chunk),
-                   "scenarios": len(scenarios), "spec": spec.to_dict()}, resume)
-    tables = {k: store.load(k, ids) for k, ids in enumerate(chunks)} if resume else {}
-    todo = [k for k in range(len(chunks)) if tables.get(k) is None]
-    with _progress(len(scenarios), progress) as bar:
-        bar.update(len(scenarios) - sum(len(chunks[k]) for k in todo))
+    with run_lock(out.with_name(out.name + ".lock"), str(out)), store.kept_if_used():
+        store.prepare({"fingerprint": spec.fingerprint(), "chunk": int(chunk),
+                       "scenarios": len(scenarios), "spec": spec.to_dict()}, resume)
+        tables = {k: store.load(k, ids) for k, ids in enumerate(chunks)} if resume else {}
+        todo = [k for k in range(len(chunks)) if tables.get(k) is None]
+        with _progress(len(scenarios), progress) as bar:
+            bar.update(len(scenarios) - sum(len(chunks[k]) for k in todo))
 
-        def done(table: pd.DataFrame) -> None:
-            k = int(table["chunk"].iloc[0])
-            store.save(k, table)
-            tables[k] = table
-            bar.update(len(table))
+            def done(table: pd.DataFrame) -> None:
+                k = int(table["chunk"].iloc[0])
+                store.save(k, table)
+                tables[k] = table
+                bar.update(len(table))
 
-        if todo:
-            _execute(_tasks(spec, scenarios, chunks, todo), spec.traces(), client, workers,
-                     done)
-    table = _assemble([tables[k] for k in range(len(chunks))], len(scenarios))
-    _write_table(table, out)
+            if todo:
+                _execute(_tasks(spec, scenarios, chunks, todo), spec.traces(), client,
+                         workers, done)
+        table = _assemble([tables[k] for k in range(len(chunks))], len(scenarios))
+        _write_table(table, out)
     return table
 
 

@@ -5,27 +5,31 @@ Imported only where a Dask cluster runs a campaign (it needs ``dask[distributed]
 
 from __future__ import annotations
 
+import contextlib
+import signal
 from typing import Any
 
 from distributed import WorkerPlugin
 
-__all__ = ["OneNumbaThread"]
+__all__ = ["WorkerSetup"]
 
 
-class OneNumbaThread(WorkerPlugin):
-    """Set numba to one thread in each worker process, once, when the worker starts.
+class WorkerSetup(WorkerPlugin):
+    """Set up each worker process once, when it starts: one numba thread, Ctrl-C left alone.
 
     The workers of a campaign share the cores as processes (one single-threaded process per
     core), so a chunk's compiled integrator must not start threads of its own.
     ``NUMBA_NUM_THREADS`` is not set through Dask instead: its nanny would also set it in the
     client's process, where numba then refuses to compile once its threads run with another
-    count.
+    count. A Ctrl-C in the terminal reaches every process of the group; the workers ignore it
+    (the client's process stops the campaign and shuts the cluster down) instead of each
+    printing a traceback.
     """
 
-    name = "teleopkit-one-numba-thread"
+    name = "teleopkit-worker-setup"
 
     def setup(self, worker: Any) -> None:
-        """Cap numba's threads of this worker process at one.
+        """Cap numba's threads of this worker process at one; ignore SIGINT in it.
 
         Parameters
         ----------
@@ -35,3 +39,5 @@ class OneNumbaThread(WorkerPlugin):
         import numba
 
         numba.set_num_threads(1)
+        with contextlib.suppress(ValueError):  # only the main thread may set a handler
+            signal.signal(signal.SIGINT, signal.SIG_IGN)

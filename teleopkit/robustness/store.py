@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import shutil
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +43,23 @@ class ChunkStore:
             ``<out>.chunks/chunk-NNNNNN.parquet``.
         """
         return self.dir / f"chunk-{chunk:06d}.parquet"
+
+    @contextlib.contextmanager
+    def kept_if_used(self) -> Iterator[None]:
+        """Remove the directory again if the block fails before any chunk is kept in it.
+
+        Yields
+        ------
+        None
+            While the block runs.
+        """
+        existed = self.dir.exists()
+        try:
+            yield
+        except BaseException:
+            if not existed and not self.has_chunks():
+                shutil.rmtree(self.dir, ignore_errors=True)
+            raise
 
     def has_chunks(self) -> bool:
         """Whether finished chunks of an earlier run are kept here."""

@@ -23,7 +23,7 @@ from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.model.params import TeleoperatorParams, plant_record
 
-__all__ = ["ASSUMPTIONS", "NUNO_EPS", "RATIO_CAVEAT", "certify_closed_form", "nuno_delay_margin",
+__all__ = ["ASSUMPTIONS", "NUNO_EPS", "RATIO_CAVEAT", "certify_frozen", "nuno_delay_margin",
            "nuno_joint_margins", "nuno_polytope", "nuno_slack", "weakest_first", "worst_vertex"]
 
 ASSUMPTIONS = (
@@ -184,7 +184,7 @@ def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
     return float(nuno_joint_margins(params, worst_vertex(box)).min())
 
 
-def certify_closed_form(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
+def certify_frozen(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
                         variation: GainVariation) -> GainCertificate:
     """The closed-form certificate of a gain box (frozen gains only).
 
