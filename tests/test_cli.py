@@ -108,3 +108,48 @@ def test_certify_bad_input_exits_2(args, needle):
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], done.stderr
+
+
+def test_simulate_warns_when_the_delays_exceed_what_its_gains_are_certified_for(tmp_path):
+    done = teleopkit("simulate", "--kr", "10", "--br", "30", "--duration", "0.5", "--delay",
+                     "constant:1.5", "--out", str(tmp_path / "run.csv"))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.strip() == ("warning: the delays reached 1.5 s; these gains are certified "
+                                   "(closed form, constant gains) for delays up to 1.095 s only, "
+                                   "so this run is outside every certificate")
+    quiet = teleopkit("simulate", "--kr", "10", "--br", "30", "--duration", "0.5", "--delay",
+                      "constant:0.5", "--out", str(tmp_path / "run.csv"))
+    assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["simulate", "--kr", "10", "--br", "30", "--out", "/proc/x.csv"],
+     "cannot write /proc/x.csv: "),
+    (["simulate", "--kr", "10", "--br", "30", "--out", "OK", "--plot", "/proc/x.png"],
+     "cannot write /proc/x.png: "),
+    (["reproduce", "--out", "/proc/teleopkit-out"], "cannot write in /proc: "),
+    (["train", "--out", "/proc/teleopkit-out"], "cannot write in /proc: "),
+    (["campaign", "SPEC", "--out", "/proc/x.csv"], "cannot write /proc/x.csv: "),
+    (["certify", "--kr", "0:0", "--br", "1:5"], "K_r of joint 1 is 0 everywhere in the box"),
+])
+def test_outputs_are_probed_before_any_work(tmp_path, args, needle):
+    spec = tmp_path / "spec.json"
+    spec.write_text('{"samples": 1, "duration": 0.1}')
+    args = [str(tmp_path / "ok.csv") if a == "OK" else str(spec) if a == "SPEC" else a
+            for a in args]
+    done = teleopkit(*args)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and needle in lines[0], done.stderr
+    assert "Errno" not in lines[0] and list(tmp_path.iterdir()) == [spec]
+
+
+def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
+    from teleopkit.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("teleopkit.certification.certify_all", interrupted)
+    assert main(["certify", "--kr", "1:5", "--br", "10:20"]) == 130
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("teleopkit: interrupted")

@@ -163,8 +163,33 @@ def test_existing_checkpoint_needs_resume_and_the_same_settings(tmp_path):
     train(replace(TINY, total_steps=80), tmp_path, progress=False)
     with pytest.raises(ValueError, match="resume"):
         train(TINY, tmp_path, progress=False)
-    with pytest.raises(ValueError, match="different settings"):
+    with pytest.raises(ValueError, match=r"other settings \(seed\): seed was 5, now 9"):
         train(replace(TINY, seed=9), tmp_path, resume=True, progress=False)
+    longer = train(replace(TINY, total_steps=160), tmp_path, resume=True, progress=False)
+    assert int(longer.log["step"].iloc[-1]) == 160  # only the length changed: it continues
+
+
+def _dead_pid() -> int:
+    child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                           capture_output=True, text=True, check=True)
+    return int(child.stdout)
+
+
+def test_a_directory_in_use_is_refused_and_a_killed_runs_lock_taken_over(tmp_path):
+    import json
+    import socket
+
+    from teleopkit.files import RunLocked
+    from teleopkit.rl.training import LOCK
+
+    lock = tmp_path / LOCK
+    lock.write_text(json.dumps({"pid": os.getppid(), "host": socket.gethostname()}))
+    with pytest.raises(RunLocked, match=f"in use by another run \\(process {os.getppid()}"):
+        train(replace(TINY, total_steps=40), tmp_path, progress=False)
+    assert not (tmp_path / CHECKPOINT).exists()  # refused before any work
+    lock.write_text(json.dumps({"pid": _dead_pid(), "host": socket.gethostname()}))
+    train(replace(TINY, total_steps=40), tmp_path, progress=False)
+    assert (tmp_path / CHECKPOINT).exists() and not lock.exists()
 
 
 @pytest.mark.parametrize("bad", [{"total_steps": 0}, {"num_envs": 0}, {"learning_starts": 1},
