@@ -207,7 +207,6 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
                      (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
-    single_thread()
     comparators = Comparators.stored(policies[0], chosen)
     if comparators is None:
         click.echo(f"finding the comparators of {chosen.gain_variation} (best static gains, and "
@@ -245,7 +244,6 @@ def reproduce_command(out: Path, scenarios: int) -> int:
     from teleopkit.rl.reproduction import reproduce
 
     check_output_dir(out, "--out")
-    single_thread()
     result = reproduce(out, scenarios)
     click.echo(to_markdown(result.summary, baseline=REFERENCE), nl=False)
     unsafe = int(result.summary["unsafe_actions"].sum())

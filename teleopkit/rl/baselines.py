@@ -50,6 +50,12 @@ FIXED_GAINS = (10.0, 30.0)
 BASELINE_SEED = 20_251_130
 """Default seed of the training scenarios of :func:`best_static_gains`."""
 
+RUN_BATCH = 64
+"""Most scenarios :func:`static_cost` simulates at once. A 40 s run records every control period
+(about 1 MB per scenario): :func:`best_static_gains` with its grid in one batch peaked at 2.1 GB
+of memory, in batches of this size at 0.33 GB (0.16 GB of it the imports), and ran faster
+(``benchmarks/bench_memory.py``)."""
+
 
 def fixed_gains(kr: float = FIXED_GAINS[0], br: float = FIXED_GAINS[1],
                 n_joints: int = 2) -> np.ndarray:
@@ -102,6 +108,13 @@ def static_cost(gains: np.ndarray, scenario: Scenario,
     """
     config = config if config is not None else FlexTeleopConfig(params=scenario.params)
     gains = np.atleast_2d(np.asarray(gains, dtype=float))
+    group = max(1, RUN_BATCH // scenario.batch)  # candidates per simulated batch
+    return np.concatenate([_costs(gains[start:start + group], scenario, config)
+                           for start in range(0, len(gains), group)])
+
+
+def _costs(gains: np.ndarray, scenario: Scenario, config: FlexTeleopConfig) -> np.ndarray:
+    """:func:`static_cost` of a few candidates, simulated as one batch."""
     count, batch = gains.shape[0], scenario.batch
     sim = Simulator(_repeat(scenario, count), config.dt, config.control_period)
     run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0))
