@@ -153,3 +153,25 @@ def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
     assert main(["certify", "--kr", "1:5", "--br", "10:20"]) == 130
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("teleopkit: interrupted")
+
+
+def test_certify_prints_the_closed_form_first_and_keeps_the_proven_set_on_ctrl_c():
+    import signal
+
+    process = subprocess.Popen([sys.executable, "-m", "teleopkit.cli", "certify", "--kr", "5:10",
+                                "--br", "30:60", "--method", "lmi", "--no-cache"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    seen = []
+    for line in process.stdout:
+        seen.append(line)
+        if line.startswith("LMI: proven so far"):
+            process.send_signal(signal.SIGINT)
+            break
+    out, err = process.communicate(timeout=120)
+    assert seen[0].startswith("closed form (instant") and any("[nuno] CERTIFIED" in s for s in seen)
+    assert process.returncode == 130
+    assert out.startswith("interrupted: the best set proven so far")
+    assert "[lmi] CERTIFIED for frozen gains" in out and "delay margin    not searched" in out
+    assert err.strip().splitlines() == [
+        "teleopkit: interrupted (finished rounds, chunks and proven sets are kept)"]

@@ -15,6 +15,7 @@ reused.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 from teleopkit.certification.cache import cached, question_key
 from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay_floors
@@ -36,14 +37,18 @@ _log = logging.getLogger("teleopkit.certification")
 def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                 tr_max: float = 1.0, method: str = "nuno",
                 variation: GainVariation | str = "frozen", tl_min: float = 0.0,
-                tr_min: float = 0.0, workers: int | None = None,
-                cache: bool = False) -> list[GainCertificate]:
+                tr_min: float = 0.0, workers: int | None = None, cache: bool = False,
+                on_proven: Callable[[GainCertificate], None] | None = None
+                ) -> list[GainCertificate]:
     """The answer of every method that ``method`` runs for the class (see :func:`certify_gains`).
 
     Parameters
     ----------
     params, box, tl_max, tr_max, method, variation, tl_min, tr_min, workers, cache
         As in :func:`certify_gains`.
+    on_proven : callable, optional
+        Handed each larger set the LMI method proves on the way (a certificate whose margin was
+        not searched), for example to show progress or keep the best set of an interrupted run.
 
     Returns
     -------
@@ -65,7 +70,7 @@ def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
 
     def answer(name: str) -> GainCertificate:
         def compute() -> GainCertificate:
-            return certify_with(name, params, box, tl_max, tr_max, checked, lower)
+            return certify_with(name, params, box, tl_max, tr_max, checked, lower, on_proven)
 
         if name != "lmi" or not cache:  # the closed form is instant
             return compute()

@@ -11,6 +11,8 @@ worker processes and the cache.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
@@ -70,7 +72,8 @@ def best_certificate(certificates: list[GainCertificate]) -> GainCertificate:
 
 def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: float,
                  tr_max: float, variation: GainVariation,
-                 delay_lower: tuple[float, float] = (0.0, 0.0)) -> GainCertificate:
+                 delay_lower: tuple[float, float] = (0.0, 0.0),
+                 on_proven: Callable[[GainCertificate], None] | None = None) -> GainCertificate:
     """The answer of one method (``"nuno"`` or ``"lmi"``), checked inputs assumed.
 
     The closed form covers every delay in ``[0, T_i*]``, hence any minimum delay
@@ -90,6 +93,10 @@ def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: fl
         Gain class.
     delay_lower : tuple of float
         Minimum delays in seconds.
+    on_proven : callable, optional
+        The LMI method hands it each larger set proven on the way
+        (:func:`~teleopkit.certification.lmi.verdict.certify_lmi`); unused by the closed form,
+        which answers at once.
 
     Returns
     -------
@@ -99,7 +106,8 @@ def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: fl
     if name == "lmi":
         from teleopkit.certification.lmi.verdict import certify_lmi  # cvxpy: only when asked
 
-        return certify_lmi(params, box, tl_max, tr_max, variation, delay_lower)
+        return certify_lmi(params, box, tl_max, tr_max, variation, delay_lower,
+                           on_proven=on_proven)
     if name != "nuno":
         raise ValueError(f"unknown method {name!r}; available: nuno, lmi")
     certify = certify_scheduled if variation.scheduled else certify_frozen

@@ -24,13 +24,15 @@ def _polygon(cert: GainCertificate, joint: int) -> str:
     return " ".join(f"({k:.4g}, {b:.4g})" for k, b in vertices)
 
 
-def certificate_table(results: Sequence[GainCertificate]) -> str:
+def certificate_table(results: Sequence[GainCertificate], footer: bool = True) -> str:
     """Format one or more certificates of the same question as aligned text.
 
     Parameters
     ----------
     results : sequence of GainCertificate
         Certificates (for example one per method).
+    footer : bool
+        End with where the gain classes are explained.
 
     Returns
     -------
@@ -49,7 +51,9 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
         verdict = "CERTIFIED" if cert.certified else "NOT CERTIFIED"
         lines += ["", f"[{cert.method}] {verdict} for {cert.gain_variation} gains",
                   f"  covers          {cert.variation.describe()}",
-                  f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"]
+                  f"  delay margin    {cert.delay_margin:.4g} s (largest common T* for the box)"
+                  if "partial" not in cert.details else
+                  "  delay margin    not searched (the set is proven at the delay bounds above)"]
         if "margin_limit" in cert.details:
             limit, vertex = cert.details["margin_limit"], cert.details["margin_limit_vertex"]
             lines.append(f"  margin limit    {limit:.4g} s (certified at the gain vertex {vertex} "
@@ -66,5 +70,7 @@ def certificate_table(results: Sequence[GainCertificate]) -> str:
             lines.append(f"  guarantees      {guarantee.describe()}")
         if cert.violation:
             lines.append(f"  violation       {cert.violation}")
+        if "partial" in cert.details:
+            lines.append(f"  partial         {cert.details['partial']}")
         lines += [f"  assumes         {text}" for text in cert.assumptions]
-    return "\n".join([*lines, "", CLASSES_PAGE])
+    return "\n".join([*lines, "", CLASSES_PAGE] if footer else lines)

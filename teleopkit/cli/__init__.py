@@ -58,7 +58,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         click.echo(f"teleopkit: error: {message}", err=True)
         return 2
     except (click.exceptions.Abort, KeyboardInterrupt):
-        click.echo("teleopkit: interrupted (what was finished is kept; --resume continues a "
-                   "training or a campaign)", err=True)
+        click.echo("teleopkit: interrupted (finished rounds, chunks and proven sets are kept)",
+                   err=True)
         return 130
     return int(result) if isinstance(result, int) else 0

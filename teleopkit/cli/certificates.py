@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import asdict, replace
+from typing import TYPE_CHECKING
+
 import click
 
 from teleopkit.cli.options import gain_variation, progress
+
+if TYPE_CHECKING:
+    from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.model.params import InitialState
 
 __all__ = ["certify"]
 
@@ -54,9 +62,7 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     The answer says what it covers: the gain class in plain words and every assumption (see
     the documentation's "What is certified" page).
     """
-    from dataclasses import asdict, replace
-
-    from teleopkit.certification import best_certificate, certify_all
+    from teleopkit.certification import best_certificate, certify_all, methods_for
     from teleopkit.certification.gain_sets import GainBox, parse_range
     from teleopkit.certification.report import certificate_table
     from teleopkit.model.params import PDGains, paper_setup
@@ -67,19 +73,61 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
                                      param_hint=f"'{option}'")
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
-    with progress(show_progress):
-        results = certify_all(params, box, tl_max, tr_max, method, variation,  # type: ignore
-                              tl_min, tr_min, workers=workers, cache=cache)
+    proven: list[GainCertificate] = []
+    if "lmi" in methods_for(method, variation) and not as_json:  # type: ignore[arg-type]
+        click.echo("closed form (instant; the LMI answer follows):")
+        closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)  # type: ignore
+        click.echo(_indented(certificate_table(closed, footer=False)))
+
+    def improved(certificate: GainCertificate) -> None:
+        proven.append(certificate)
+        if not as_json:
+            click.echo(f"LMI: proven so far for {certificate.gain_variation} gains at the "
+                       f"delay bounds: {_set_text(certificate)} (searching further)")
+
+    try:
+        with progress(show_progress):
+            results = certify_all(params, box, tl_max, tr_max, method, variation,  # type: ignore
+                                  tl_min, tr_min, workers=workers, cache=cache,
+                                  on_proven=improved)
+    except KeyboardInterrupt:
+        if proven:
+            _answer([proven[-1]], as_json, params.initial,
+                    "interrupted: the best set proven so far (its delay margin was not searched)")
+        raise
+    best = best_certificate(results)
+    _answer(results, as_json, params.initial)
+    return 0 if best.certified else 1
+
+
+def _indented(text: str) -> str:
+    return "\n".join(f"  {line}" if line else line for line in text.splitlines())
+
+
+def _set_text(certificate: GainCertificate) -> str:
+    """The proven set in a few words: the whole box, or the polygon of each joint."""
+    if certificate.certified:
+        return "the whole box"
+    return "; ".join(f"joint {i + 1} " + " ".join(
+        f"({k:.4g}, {b:.4g})" for k, b in certificate.polytope.joint_vertices(i))
+        for i in range(certificate.box.n_joints))
+
+
+def _answer(results: list[GainCertificate], as_json: bool, start: InitialState,
+            note: str = "") -> None:
+    """Print the answer: the table (with ``note`` first), or the best certificate as JSON."""
+    from teleopkit.certification import best_certificate
+    from teleopkit.certification.report import certificate_table
+
     best = best_certificate(results)
     if as_json:
-        import json
-
         payload = best.to_dict()
-        guarantee = best.guarantee(params.initial)
+        guarantee = best.guarantee(start)
         if guarantee is not None:  # from the paper's start (no proof depends on a start)
-            payload["guarantee"] = {**guarantee.to_dict(), "start": asdict(params.initial)}
+            payload["guarantee"] = {**guarantee.to_dict(), "start": asdict(start)}
         payload["results"] = [c.to_dict() for c in results]
+        if note:
+            payload["interrupted"] = note
         click.echo(json.dumps(payload, indent=2))
     else:
-        click.echo(certificate_table(results))
-    return 0 if best.certified else 1
+        click.echo((f"{note}\n" if note else "") + certificate_table(results))

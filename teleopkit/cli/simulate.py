@@ -62,8 +62,10 @@ def simulate(kr: list[float], br: list[float], duration: float, delay: str, seed
     if plot is not None:
         from teleopkit.plots import save_run_figure
 
+        scaled = " (the paper's profile scaled by this seed's delay scales)" if delay == "paper" \
+            else ""
         save_run_figure(trajectory.to_frame(), plot,
-                        title=f"K_r = {kr}, B_r = {br}, delay {delay}")
+                        title=f"K_r = {kr}, B_r = {br}, delay {delay}{scaled}")
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
     click.echo(f"wrote {len(trajectory.t)} rows to {out}; RMS tracking error {rms:.4g} rad")

@@ -10,6 +10,7 @@ large sets is searched by covers between a lower bound and the limiting vertex's
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from teleopkit.certification.gain_certificate import GainCertificate
@@ -39,6 +40,7 @@ from teleopkit.model.params import TeleoperatorParams, plant_params, plant_recor
 __all__ = [
     "MARGIN_BUDGET",
     "MARGIN_FLOOR",
+    "PARTIAL",
     "certify_lmi",
     "check_lmi",
     "cut_polytope",
@@ -49,6 +51,10 @@ _log = logging.getLogger(__name__)
 
 MARGIN_FLOOR = 1e-3
 """Delay margins (above the minimum delays) below this, in seconds, are not searched: 0."""
+
+PARTIAL = ("proven at the requested delay bounds; the delay margin was not searched (an "
+           "interrupted certification keeps this)")
+"""``details["partial"]`` of the certificates :func:`certify_lmi` hands its ``on_proven``."""
 
 MARGIN_BUDGET = 120
 """Most LMI solves per cover when :func:`certify_lmi` searches the margin of constant gains of
@@ -96,13 +102,15 @@ def cut_polytope(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max
 
 
 def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: int,
-                  memo: CellMemo) -> tuple[float, Cover | None]:
+                  memo: CellMemo, proven: Callable[[float, Cover], None]
+                  ) -> tuple[float, Cover | None]:
     """Largest certified member of the family :func:`cut_polytope`, by its scale ``s``.
 
     Bisection on ``s`` over ``steps`` solves after the first certified member (doubling ``s``
     up to three times when ``s = 1`` is not certified); the members are nested, so their covers
-    share the verdicts of ``memo``. Returns ``s`` and the member's cover (``s = 1`` and ``None``
-    if no member was certified).
+    share the verdicts of ``memo``. Each member certified larger than the last is handed to
+    ``proven``. Returns ``s`` and the member's cover (``s = 1`` and ``None`` if no member was
+    certified).
     """
     (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
     root = (box.lower, box.upper)  # every member is split from the box: their cells line up
@@ -116,6 +124,8 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: in
             return False
         covers[scale] = set_certificate(params, polytope, tl_max, tr_max, kind, method,
                                         delay_lower=delay_lower, memo=memo, root=root)
+        if covers[scale].certified:
+            proven(scale, covers[scale])
         return covers[scale].certified
 
     low, high = 0.0, 1.0
@@ -133,7 +143,8 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: in
 
 def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
                 variation: GainVariation, delay_lower: tuple[float, float] = NO_LOWER,
-                method: str = LMI_METHOD, steps: int = 3) -> GainCertificate:
+                method: str = LMI_METHOD, steps: int = 3,
+                on_proven: Callable[[GainCertificate], None] | None = None) -> GainCertificate:
     """The LMI certificate of a gain box on the linearisation at rest.
 
     Parameters
@@ -152,6 +163,11 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
         A :data:`certify.METHODS` name.
     steps : int
         Bisection steps of the certified polytope when the box is not certified.
+    on_proven : callable, optional
+        Called with a certificate each time a larger set is proven at the requested bounds (the
+        whole box, or a larger member of the cut family), before the delay margin is searched:
+        a complete certificate of that set with its margin not searched (0), marked so in
+        ``details["partial"]``. What an interrupted certification keeps.
 
     Returns
     -------
@@ -170,11 +186,25 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
                               delay_lower=delay_lower, memo=memo, root=(box.lower, box.upper))
     cert = verdict.certificates[-1]
     proof_details: dict[str, Any] = {}
+
+    def partial(polytope: GainPolytope, certified: bool, extra: dict[str, Any]) -> None:
+        if on_proven is None:
+            return
+        on_proven(GainCertificate(
+            certified, "lmi", str(variation), bounds, 0.0, box, polytope, True,
+            lmi_assumptions(variation, delay_lower),
+            None if certified else "a member of the cut family is certified; the box was not",
+            {"lmi_method": method, **extra, "partial": PARTIAL}, plant_record(params),
+            delay_lower))
+
     if verdict.certified:
         polytope, polytope_certified, violation = whole, True, None
         proof_details["proof"] = cover_proof(verdict, bounds, delay_lower)
+        partial(whole, True, proof_details)
     else:
-        scale, cover = _lmi_polytope(params, box, kind, steps, memo)
+        scale, cover = _lmi_polytope(params, box, kind, steps, memo, lambda s, c: partial(
+            cut_polytope(params, box, tl_max, tr_max, s), False,
+            {"polytope_scale": s, "proof": cover_proof(c, bounds, delay_lower)}))
         polytope = cut_polytope(params, box, tl_max, tr_max, scale)
         polytope_certified = cover is not None
         proof_details["polytope_scale"] = scale
