@@ -146,23 +146,6 @@ class ScheduledStorage:
         """
         return np.asarray(gains)[..., 0] / self.shape[0]
 
-    def dissipation_rates(self, gains: np.ndarray) -> np.ndarray:
-        """Coefficients ``B_r^i / kappa - s_i rho_i`` of ``theta_i'^2`` in the proven dissipation.
-
-        Parameters
-        ----------
-        gains : ndarray, shape (..., 2 n)
-            Remote gains of the class (common shape, inside the cone).
-
-        Returns
-        -------
-        ndarray, shape (..., n)
-            Non-negative inside the cone.
-        """
-        gains = np.asarray(gains, dtype=float)
-        n = len(self.shape)
-        return gains[..., n:] / self.kappa(gains)[..., None] - np.array(self.shape) * self.cone
-
     def value(self, params: TeleoperatorParams, trajectory: Trajectory) -> np.ndarray:
         """``V`` at every recorded time, just after the sample (with the next period's gains).
 
