@@ -51,9 +51,8 @@ BASELINE_SEED = 20_251_130
 """Default seed of the training scenarios of :func:`best_static_gains`."""
 
 RUN_BATCH = 64
-"""Most scenarios :func:`static_cost` simulates at once. A 40 s run records every control period
-(about 1 MB per scenario): :func:`best_static_gains` with its grid in one batch peaked at 2.1 GB
-of memory, in batches of this size at 0.33 GB (0.16 GB of it the imports), and ran faster
+"""Most scenarios :func:`static_cost` simulates at once: a 40 s run records every control period
+(about 1 MB per scenario), so a whole grid of candidates in one batch would need gigabytes
 (``benchmarks/bench_memory.py``)."""
 
 

@@ -41,13 +41,10 @@ delay profiles have no ``factors`` (with factors the batch shares one column: 10
 
 CALL_VALUES = 1 << 20
 """Delay values per channel that one kernel call of :meth:`Simulator.run` samples by default
-(16 MB of inputs for both channels). Profiles with ``factors`` need one value per stage time
-whatever the batch, so a run of up to 655 s is one call; otherwise a 40 s run of one scenario
-is one call and a batch of 4096 runs 16 periods per call (larger inputs are fresh memory on
-every call, which cost a batch of 4096 some 10-25 % of its rate against calls of 25 periods).
-Long calls are also faster in themselves: each block of scenarios then reads history its
-thread has just written (batch 4096: 1.9 M env-steps/s in calls of 25 periods, 2.3 M in calls
-of 400)."""
+(16 MB of inputs for both channels): a run of up to 655 s with profiles that have ``factors``, a
+40 s run of one scenario otherwise, or 16 periods of a batch of 4096. Long calls are faster
+(each block of scenarios reads history its thread has just written) until their inputs stop
+fitting in memory already touched (``benchmarks/README.md`` has the measurements)."""
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -32,10 +32,9 @@ __all__ = ["ACCURATE_FRACTION", "accurate_step", "check_motor_damping", "check_s
            "largest_motor_damping", "local_damping_rate"]
 
 ACCURATE_FRACTION = 0.85
-"""Fraction of the stability limit up to which a step keeps its accuracy. Closer to the limit the
-step is stable but the damped mode is followed less closely: on the paper's model with the local
-damping ``B_l`` raised, 20 s runs at 2.5 ms were 6.7e-6 rad from the converged run at 0.86 of the
-limit, 1.3e-5 at 0.89 and 5.0e-5 at 0.95 (1.4e-6 at the paper's 0.76)."""
+"""Fraction of the stability limit up to which a step keeps its accuracy (within 1e-5 rad of a
+converged run on the paper's model with a raised local damping; closer to the limit the step is
+stable but follows the damped mode less closely, ``docs/performance.rst``)."""
 
 _LEVELS = 720
 """Configurations searched for the local arm's smallest inertia (spread over the joints)."""
