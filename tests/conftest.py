@@ -37,6 +37,23 @@ def one_joint() -> TeleoperatorParams:
         initial=InitialState((-0.2,), (-0.1,), (0.0,)))
 
 
+@pytest.fixture(scope="module")
+def policy():
+    """A TD3 policy sized for the paper's plant, some of its gains outside the certified set.
+
+    Used by tests/rl (evaluation) and tests/cli (tuning); torch is imported only when asked for.
+    """
+    import torch
+
+    from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
+    from teleopkit.rl.td3 import TD3
+
+    agent = TD3.for_env(FlexTeleopVectorEnv(1, FlexTeleopConfig(episode_length=0.3)), seed=0)
+    with torch.no_grad():
+        agent.actor.head.bias.copy_(torch.tensor([2.0, -1.0, -3.0, 1.0]))  # some outside the set
+    return agent.policy({"best_static_gains": [3.0, 7.0, 8.0, 18.0]})
+
+
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Skip the tests marked ``slow`` unless they are selected with ``-m slow``."""

@@ -37,6 +37,8 @@ from teleopkit.sim.scenarios import sample_reference_gains
 
 TINY = {"duration": 0.5, "factors": {"delay": ["paper", "constant:0.3"], "kr": [10, 50],
                                      "joint_stiffness": [100, 60], "seed": [0, 1]}}
+KR_ONLY = {"duration": 0.2, "factors": {"kr": [10, 20, 30]}}
+"""Three scenarios (the bad-input suite's ``TINY``), for the run without Dask."""
 
 
 def without_timing(table: pd.DataFrame) -> pd.DataFrame:
@@ -143,6 +145,15 @@ def test_local_cluster_and_synchronous_scheduler_give_identical_rows(tmp_path):
     assert len(pd.read_csv(tmp_path / "local.csv")) == len(sync) == 24
     assert sync.loc[sync["delay"].str.startswith("csv:"), "delay_bound"].eq(0.6).all()
     assert not sync["diverged"].any()
+
+
+def test_campaign_runs_synchronously_without_dask(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed now fails
+    monkeypatch.setitem(sys.modules, "dask", None)
+    table = run_campaign(KR_ONLY, tmp_path / "o.csv", client="synchronous", chunk=2)
+    assert len(table) == 3
 
 
 def test_unstable_gains_are_flagged_as_diverged(tmp_path):

@@ -11,7 +11,7 @@ import pytest
 
 import teleopkit
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LAYERS = ("model", "delays", "sim", "certification", "safety", "rl", "robustness")
 """Sub-packages from the bottom up: each may import only those before it."""
 

@@ -391,24 +391,6 @@ def write_trace(text: str) -> str:
     return "trace.csv"
 
 
-def test_units_of_a_trace_come_from_its_column_names(tmp_path):
-    (tmp_path / "ms.csv").write_text("t,delay_ms\n0,300\n2,310\n")
-    (tmp_path / "s.csv").write_text("time_s,latency\n0,0.3\n2000,0.31\n")
-    in_ms = TraceDelay.from_csv(tmp_path / "ms.csv")
-    np.testing.assert_allclose(in_ms.delays, [0.3, 0.31])
-    np.testing.assert_allclose(TraceDelay.from_csv(tmp_path / "s.csv", unit="ms").times,
-                               [0.0, 2000.0])  # the suffix wins over the unit option
-    plain = tmp_path / "plain.csv"
-    plain.write_text("t,delay\n0,300\n1000,310\n")
-    np.testing.assert_allclose(TraceDelay.from_csv(plain, unit="ms").delays, [0.3, 0.31])
-    assert parse_delay("constant:500ms")[0].bound == pytest.approx(0.5)
-
-
-def test_a_float_delay_is_a_constant_one_in_seconds():
-    table = simulate((10.0, 30.0), duration=1.0, delay=0.2)
-    assert table["Tl"].eq(0.2).all() and table["Tr"].eq(0.2).all()
-
-
 def test_simulate_writes_nothing_when_an_output_is_bad(tmp_path):
     code = main(["simulate", "--kr", "10", "--br", "30", "--out", str(tmp_path / "x.csv"),
                  "--plot", "/nonexistent/p.png"])
@@ -421,15 +403,6 @@ def test_a_run_too_large_for_the_disk_is_refused_up_front(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("teleopkit: error: Invalid value for '--out': the output "
                                         "would take about 5.94e+07 GB, more than the ")
-
-
-def test_campaign_runs_synchronously_without_dask(tmp_path, monkeypatch):
-    import sys
-
-    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed now fails
-    monkeypatch.setitem(sys.modules, "dask", None)
-    table = run_campaign(TINY, tmp_path / "o.csv", client="synchronous", chunk=2)
-    assert len(table) == 3
 
 
 def test_there_are_at_least_50_cases():

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
-from teleopkit.certification import certify_gains, cover
+from teleopkit.certification import certify_gains
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
+from teleopkit.certification.lmi import cover
 from teleopkit.certification.lmi.cells import CellMemo
 from teleopkit.certification.lmi.cover import (
     CORNERS_AT_ONCE,

@@ -1,0 +1,131 @@
+"""Tests of teleopkit.cli.tuning: the train, evaluate and reproduce commands."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from teleopkit.certification import certify_gains
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.certification.gain_sets import GainBox
+from teleopkit.cli import main
+from teleopkit.model.params import paper_setup
+from teleopkit.rl.policy import PRETRAINED_COVERED
+
+BOX = GainBox.uniform((5.0, 20.0), (30.0, 100.0))
+
+
+def teleopkit(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "teleopkit.cli", *args], capture_output=True,
+                          text=True, timeout=300,
+                          env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+
+
+def test_evaluate_command_takes_a_certificate_file(policy, tmp_path):
+    path = tmp_path / "policy.npz"
+    policy.save(path)
+    certificate = tmp_path / "certificate.json"
+    certificate.write_text(certify_gains(paper_setup(), BOX, 1.0, 1.0).to_json())
+    done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
+                     "--certificate", str(certificate), "--out", str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    assert "finding the comparators" in done.stderr and "unsafe actions: 0" in done.stdout
+
+
+def test_evaluate_command_writes_the_report(policy, tmp_path):
+    path = tmp_path / "policy.npz"
+    policy.save(path)
+    done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "0.3",
+                     "--out", str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    assert "| TD3 (frozen) |" in done.stdout and "unsafe actions: 0" in done.stdout
+    summary = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)
+    assert list(summary.index) == ["TD3 (frozen)", "best static", "fixed"]
+    assert {"cost_opening", "cost_rest"} <= set(summary.columns)
+    np.testing.assert_allclose(summary["cost_opening"] + summary["cost_rest"], summary["cost"])
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["train", "--steps", "0"], "--steps"),
+    (["train", "--envs", "-2"], "--envs"),
+    (["train", "--seed", "x"], "--seed"),
+    (["evaluate"], "--policy"),
+    (["evaluate", "--policy", "/no/such/policy.npz"], "policy.npz"),
+    (["evaluate", "--policy", "NOT_A_POLICY"], "not a teleopkit policy"),
+    (["evaluate", "--policy", "POLICY", "--scenarios", "0"], "--scenarios"),
+    (["evaluate", "--policy", "POLICY", "--duration", "-1"], "--duration"),
+    (["reproduce", "--scenarios", "0"], "--scenarios"),
+    (["evaluate", "--policy", "POLICY", "--certificate", "/no/such/cert.json"], "cert.json"),
+    (["train", "--steps", "10", "--certificate", "NOT_A_POLICY"], "malformed gain certificate"),
+    (["train", "--steps", "10", "--certificate", "UNCERTIFIED"], "polytope_certified"),
+    (["train", "--steps", "10", "--certificate", "EMPTY"], "no certified gain"),
+])
+def test_bad_input_exits_2_with_one_line(policy, tmp_path, capsys, args, needle):
+    junk = tmp_path / "junk.npz"
+    junk.write_text("junk")
+    good = tmp_path / "good.npz"
+    policy.save(good)
+    uncertified = tmp_path / "uncertified.json"
+    data = json.loads(certify_gains(paper_setup(), BOX, 1.0, 1.0).to_json())
+    uncertified.write_text(json.dumps({**data, "polytope_certified": False}))
+    empty = tmp_path / "empty.json"
+    empty.write_text(certify_gains(paper_setup(), BOX, 20.0, 20.0).to_json())
+    files = {"NOT_A_POLICY": junk, "POLICY": good, "UNCERTIFIED": uncertified, "EMPTY": empty}
+    args = [str(files[a]) if a in files else a for a in args]
+    assert main([*args, "--out", str(tmp_path / "out")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], lines
+    assert lines[0].startswith("teleopkit: error:")
+
+
+def test_train_command_refuses_to_mix_runs(tmp_path):
+    """A real process: exit 2, one line, no traceback."""
+    (tmp_path / "checkpoint.pt").write_bytes(b"x")
+    done = teleopkit("train", "--steps", "10", "--out", str(tmp_path))
+    assert done.returncode == 2 and "--resume" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+
+
+@pytest.mark.slow
+def test_reproduce_command_writes_figures_and_table(tmp_path):
+    done = teleopkit("reproduce", "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"delay_profile.png", "adaptive_gains.png", "positions.png", "tracking_error.png",
+            "damping_error.png", "summary.md", "summary.csv"} <= names
+
+
+def test_evaluate_refuses_a_certificate_that_does_not_cover_the_policy(tmp_path, capsys):
+    from importlib import resources
+
+    frozen = tmp_path / "frozen.json"
+    frozen.write_text(default_certificate().to_json())
+    with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED_COVERED) as path:
+        code = main(["evaluate", "--policy", str(path), "--certificate", str(frozen),
+                     "--out", str(tmp_path / "out")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert "class frozen does not cover the policy's class tank:3" in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_evaluate_runs_unseen_delay_shapes_under_the_policy_certificate(tmp_path):
+    from importlib import resources
+
+    with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED_COVERED) as path:
+        done = teleopkit("evaluate", "--policy", str(path), "--scenarios", "2", "--duration",
+                         "0.5", "--delay", "switching:0:1:50ms", "--seed", "99", "--out",
+                         str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    summary = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)
+    assert summary.index[0] == "TD3 (tank:3)" and summary.loc["best static", "certificate"] == \
+        "frozen"
+    assert {"semi-active (tank:3)", "open-loop (tank:3)"} <= set(summary.index)
+    assert summary["covered"].all() and summary["unsafe_actions"].sum() == 0
+    assert "finding the comparators" not in done.stderr  # stored with the policy
