@@ -218,7 +218,7 @@ def main() -> None:
             repeat)
         rows["max position error, rad"][name] = float(np.abs(run_compiled(dt)[1] - fine).max())
     rows["max position error, rad"]["numpy 2.5 ms"] = rows["max position error, rad"][
-        "compiled 2.5 ms"]  # the backends agree to 1e-10 (tests/test_kernel.py)
+        "compiled 2.5 ms"]  # the backends agree to 1e-10 (tests/sim/test_sim_kernel.py)
     rows["memory per scenario, bytes"] = {name: memory_per_scenario(4096, PERIODS, dt)
                                           for name, dt in columns.items()}
 

@@ -10,7 +10,7 @@ import numpy as np
 from teleopkit.cli.options import IMAGE_SUFFIXES, check_disk, check_output, delay_spec, gains
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
-__all__ = ["simulate"]
+__all__ = ["simulate_command"]
 
 _CSV_ROW_BYTES = 27 * 22
 """About what one row of the run's CSV takes (27 columns of shortest round-trip floats)."""
@@ -26,7 +26,7 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
     return value
 
 
-@click.command()
+@click.command("simulate")
 @click.option("--kr", required=True, callback=gains,
               help="Remote proportional gain K_r: one value or K1,K2.")
 @click.option("--br", required=True, callback=gains,
@@ -46,8 +46,8 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
               help="CSV file for the trajectory.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
               help=f"Figure file ({', '.join(IMAGE_SUFFIXES)}) of the run, paper style.")
-def simulate(kr: list[float], br: list[float], duration: float, delay: str, seed: int, dt: float,
-             out: Path, plot: Path | None) -> None:
+def simulate_command(kr: list[float], br: list[float], duration: float, delay: str, seed: int,
+                     dt: float, out: Path, plot: Path | None) -> None:
     """Simulate the paper's teleoperator with constant remote gains and write the run as CSV."""
     from teleopkit.files import write_csv
     from teleopkit.sim.simulator import simulate_trajectory

@@ -18,8 +18,6 @@ from teleopkit.cli.options import (
     read_certificate,
     single_thread,
 )
-from teleopkit.model.params import paper_setup
-from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, PAPER_DELAY_FLOOR
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
@@ -68,6 +66,9 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     if resume and not (out / CHECKPOINT).is_file():
         raise click.BadParameter(f"no checkpoint in {out} ({CHECKPOINT}); leave --resume out "
                                  "to start a run there", param_hint="'--resume'")
+    if not resume and (out / CHECKPOINT).exists():
+        raise click.BadParameter(f"{out / CHECKPOINT} exists; pass --resume to continue it or "
+                                 "choose another directory", param_hint="'--out'")
     chosen = _training_certificate(out, resume, variation, certificate)
     recipe = _training_config(ctx, out, resume, steps, envs, seed)
     per_round = recipe.num_envs * FlexTeleopConfig().max_steps
@@ -105,6 +106,7 @@ def _training_certificate(out: Path, resume: bool, variation: object,
     """
     from teleopkit.certification.certifier import default_certificate
     from teleopkit.rl.training import CERTIFICATE, COVERING_CLASS
+    from teleopkit.safety.factory import layer_for
 
     if certificate is not None:
         chosen = read_certificate(certificate)
@@ -112,12 +114,18 @@ def _training_certificate(out: Path, resume: bool, variation: object,
         chosen = default_certificate(variation=variation or COVERING_CLASS)  # type: ignore
     else:
         chosen = read_certificate(out / CERTIFICATE)
-    try:
-        chosen.check(paper_setup(), PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
-                     (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
-    except ValueError as error:
-        raise click.BadParameter(str(error), param_hint="'--certificate'") from None
+    _check_for_paper_plant(chosen)
+    layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen
+
+
+def _check_for_paper_plant(certificate: GainCertificate) -> None:
+    """Refuse (one line) a certificate for another plant or delays the paper's can exceed."""
+    from teleopkit.model.params import paper_setup
+    from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, PAPER_DELAY_FLOOR
+
+    certificate.check(paper_setup(), PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
+                      (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
 
 
 def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, envs: int,
@@ -198,15 +206,14 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
             policies.append(GainPolicy.load(path))
         except ValueError as error:
             raise click.BadParameter(str(error), param_hint="'--policy'") from None
+    chosen = (read_certificate(certificate) if certificate is not None
+              else policy_certificate(policies[0]))
     try:
-        chosen = (read_certificate(certificate) if certificate is not None
-                  else policy_certificate(policies[0]))
         for policy in policies:
             check_covers(chosen, policy)
-        chosen.check(paper_setup(), PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
-                     (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
+    _check_for_paper_plant(chosen)
     comparators = Comparators.stored(policies[0], chosen)
     if comparators is None:
         click.echo(f"finding the comparators of {chosen.gain_variation} (best static gains, and "

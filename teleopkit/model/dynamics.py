@@ -18,12 +18,12 @@ from teleopkit.model.params import ElasticJoints, PlanarArm
 
 __all__ = [
     "coriolis_matrix",
+    "elastic_arm_energy",
     "inertia_coefficients",
     "kinetic_energy",
     "mass_from_cosines",
     "mass_matrix",
     "mass_matrix_derivative",
-    "remote_energy",
 ]
 
 
@@ -158,7 +158,7 @@ def kinetic_energy(arm: PlanarArm, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     return 0.5 * np.einsum("...i,...ij,...j->...", dq, mass_matrix(arm, q), dq)
 
 
-def remote_energy(arm: PlanarArm, joints: ElasticJoints, q: np.ndarray, dq: np.ndarray,
+def elastic_arm_energy(arm: PlanarArm, joints: ElasticJoints, q: np.ndarray, dq: np.ndarray,
                   theta: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
     """Stored energy of the elastic remote arm: link and rotor kinetic energy plus spring energy.
 

@@ -14,7 +14,7 @@ in the certified set.
 
 Constant gains need no agent in the loop, so costs come straight from one batched
 :class:`~teleopkit.sim.simulator.Simulator` run per candidate: the same numbers as stepping the
-environment (see ``tests/test_evaluation.py``), at a fraction of the cost.
+environment (see ``tests/rl/test_rl_evaluation.py``), at a fraction of the cost.
 """
 
 from __future__ import annotations

@@ -113,7 +113,7 @@ class TD3Config:
         Factor applied to rewards in the critic targets (the reward itself is unchanged). Not a
         paper setting: 0.01 keeps the Q-values of the environment's default reward weights
         between about -40 (opening transient) and -1; unscaled, the short test problem of
-        ``tests/test_training.py`` does not learn at all in 2 000 updates.
+        ``tests/rl/test_rl_training.py`` does not learn at all in 2 000 updates.
     projection_penalty : float
         Weight ``lambda`` of the actor's squared distance to the set (normalised units).
     hidden_actor : tuple of int

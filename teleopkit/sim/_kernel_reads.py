@@ -12,11 +12,11 @@ import math
 
 from numba import njit
 
-__all__ = ["delay_at", "delays_exceed", "hermite", "interpolate", "locate"]
+__all__ = ["delay_at", "delays_exceed", "hermite_scalar", "interpolate", "locate"]
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def hermite(x0: float, v0: float, x1: float, v1: float, span: float, u: float) -> float:
+def hermite_scalar(x0: float, v0: float, x1: float, v1: float, span: float, u: float) -> float:
     """:func:`teleopkit.delays.history.hermite` for scalars."""
     u2 = u * u
     u3 = u2 * u
@@ -58,7 +58,7 @@ def interpolate(hist, lane, c, i, where, position, velocity, initial):
     n = initial.shape[2]
     x1 = position if inside else hist[lane, c, z, i]
     v1 = velocity if inside else hist[lane, c, z, n + i]
-    value = hermite(hist[lane, c, a, i], hist[lane, c, a, n + i], x1, v1, span, u)
+    value = hermite_scalar(hist[lane, c, a, i], hist[lane, c, a, n + i], x1, v1, span, u)
     return initial[lane, c, i] if before else value
 
 

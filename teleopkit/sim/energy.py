@@ -1,7 +1,7 @@
 """The plant's stored energy read off simulated states: one home for every energy of the loop.
 
 The arms' own energies are physics (:func:`~teleopkit.model.dynamics.kinetic_energy`,
-:func:`~teleopkit.model.dynamics.remote_energy`); this module evaluates them on the state
+:func:`~teleopkit.model.dynamics.elastic_arm_energy`); this module evaluates them on the state
 layout of :mod:`teleopkit.sim.state`, adds what the environment and the operator store, and
 reads the motor-speed integrals the simulator carries. The storage of the scheduled classes,
 the energy tank of their safety layer and the falsification search all take their energies
@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from teleopkit.model.dynamics import kinetic_energy
-from teleopkit.model.dynamics import remote_energy as arm_energy
+from teleopkit.model.dynamics import elastic_arm_energy, kinetic_energy
 from teleopkit.model.params import TeleoperatorParams, Wall
 from teleopkit.sim.state import StateLayout
 
@@ -37,7 +36,7 @@ def remote_energy(params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
     """
     layout = StateLayout.of(state)
     qr = layout.get(state, "qr")
-    energy = arm_energy(params.remote_arm, params.joints, qr, layout.get(state, "dqr"),
+    energy = elastic_arm_energy(params.remote_arm, params.joints, qr, layout.get(state, "dqr"),
                         layout.get(state, "theta"), layout.get(state, "dtheta"))
     if isinstance(params.environment, Wall):
         depth = np.maximum(0.0, qr - np.array(params.environment.position))

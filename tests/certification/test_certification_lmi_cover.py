@@ -205,7 +205,7 @@ def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, mo
     for verdict, solves in ((bad, PROBES), (good, len(todo))):
         calls: list[GainPolytope] = []
         monkeypatch.setattr(cover, "lmi_certificate",
-                            lambda *args, v=verdict, seen=calls: seen.append(args[1]) or v)
+                            lambda *args, v=verdict, seen=calls, **_: seen.append(args[1]) or v)
         known = [None] * len(todo)
         memo = CellMemo(one_joint, (1.45, 1.45), LMI_METHOD, (0.0, 0.0))
         assert _solve_level(one_joint, todo, known, list(range(len(todo))), memo) == solves

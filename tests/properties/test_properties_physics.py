@@ -19,7 +19,12 @@ from teleopkit import (
     Simulator,
     SwitchingDelay,
 )
-from teleopkit.model.dynamics import coriolis_matrix, kinetic_energy, mass_matrix, remote_energy
+from teleopkit.model.dynamics import (
+    coriolis_matrix,
+    elastic_arm_energy,
+    kinetic_energy,
+    mass_matrix,
+)
 from teleopkit.model.laws import environment_torque, local_torque, operator_torque, remote_torque
 from teleopkit.model.params import paper_setup
 
@@ -40,7 +45,7 @@ def test_uncontrolled_remote_arm_conserves_energy():
     params = replace(paper_setup(), torque_limit=math.inf)
     trajectory = _run(params, 0.0, np.zeros(4), duration=10.0, dt=0.00025, period=0.01)
     _, _, qr, dqr, th, dth = _blocks(trajectory)
-    energy = remote_energy(params.remote_arm, params.joints, qr, dqr, th, dth)
+    energy = elastic_arm_energy(params.remote_arm, params.joints, qr, dqr, th, dth)
     assert energy[0] > 0.5  # the spring starts stretched: there is energy to conserve
     assert np.abs(dqr).max() > 0.5  # and it moves
     assert np.abs(energy / energy[0] - 1).max() < 1e-6
@@ -51,7 +56,7 @@ def _lyapunov(params, kl: float, kr: float, trajectory):
     ql, dql, qr, dqr, th, dth = _blocks(trajectory)
     local = kinetic_energy(params.local_arm, ql, dql) + 0.5 * params.operator.stiffness * np.sum(
         ql**2, axis=1)
-    remote = remote_energy(params.remote_arm, params.joints, qr, dqr, th, dth)
+    remote = elastic_arm_energy(params.remote_arm, params.joints, qr, dqr, th, dth)
     storage = local / kl + remote / kr + 0.5 * np.sum((ql - th) ** 2, axis=1)
     dissipation = ((params.operator.damping + params.local_gains.damping[0]) / kl
                    * np.sum(dql**2, axis=1) + params.remote_gains.damping[0] / kr

@@ -8,3 +8,5 @@ cells; :mod:`~teleopkit.certification.lmi.cover` covers large sets of gains with
 :mod:`~teleopkit.certification.lmi.verdict` turns them into a gain certificate (and verifies
 one).
 """
+
+__all__: list[str] = []  # the modules are the API; nothing is re-exported

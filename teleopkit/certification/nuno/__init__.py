@@ -7,3 +7,5 @@ polytope of a box, the delay margins and the frozen-gain certificate.
 scheduled classes and its value along a run; :mod:`~teleopkit.certification.nuno.scheduled`
 turns it into the certificates of ``scheduled:L`` and ``tank``.
 """
+
+__all__: list[str] = []  # the modules are the API; nothing is re-exported

@@ -1,0 +1,218 @@
+"""Time to 10 % below the frozen best static gains: teleopkit's trainer against Stable-Baselines3.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
+        [--discounts 0.95 0.99] [--which teleopkit sb3]
+
+Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
+recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
+machine, one run after the other. Both trainers get the recipe's settings: learning rates 1e-3,
+batch 512, a warm-up of one round (64 000 transitions of uniform random gains), rewards scaled by
+0.01, one gradient update per vector step of 16 transitions, observations standardised with
+statistics frozen from the warm-up, the paper's network widths, Gaussian exploration of 4 gain
+units, the discount given. After every round (one 40 s episode of every scenario) the
+deterministic actor is validated on the recipe's 16 validation scenarios; a run stops at the
+first round whose validation cost is 10 % below that of the best static gains of the frozen
+class there. Printed per trainer, discount and seed: that round and the wall-clock time to it
+(training and validations; the static gains' search is excluded and printed apart).
+
+What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
+the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
+environment, actions in ``[-1, 1]`` rescaled onto the gain box.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import torch
+
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.rl.baselines import best_static_gains
+from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
+from teleopkit.rl.evaluation import rollout
+from teleopkit.rl.td3 import TD3Config
+from teleopkit.rl.training import COVERING_CLASS, TrainConfig, train
+
+RECIPE = TrainConfig()
+REWARD_SCALE = RECIPE.td3.reward_scale
+
+
+class _Reached(Exception):
+    """Raised by a round callback to stop a run at its first round below the target."""
+
+
+def _teleopkit(seed: int, discount: float, rounds: int, target: float,
+               config: FlexTeleopConfig) -> tuple[int, float, float]:
+    """Round, validation cost and wall time of teleopkit's recipe at the first round below."""
+    per_round = RECIPE.num_envs * config.max_steps
+    settings = TrainConfig(total_steps=rounds * per_round, seed=seed,
+                           td3=TD3Config(discount=discount, actor_lr=1e-3, critic_lr=1e-3))
+    last: list[float] = []
+    with tempfile.TemporaryDirectory() as out:
+        def check(done: int) -> None:
+            row = pd.read_csv(f"{out}/train_log.csv").iloc[-1]
+            last[:] = [done, row["validation_cost"], row["wall_time"]]
+            if row["validation_cost"] <= target:
+                raise _Reached
+
+        try:
+            train(settings, out, env_config=config, progress=False, on_round=check)
+        except _Reached:
+            pass
+    return int(last[0]), last[1], last[2]
+
+
+def _sb3(seed: int, discount: float, rounds: int, target: float,
+         config: FlexTeleopConfig) -> tuple[int, float, float]:
+    """Round, validation cost and wall time of SB3's TD3 at the first round below."""
+    from stable_baselines3 import TD3
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    start = time.perf_counter()
+    env = _SB3View(FlexTeleopVectorEnv(RECIPE.num_envs, config), seed)
+    per_round = RECIPE.num_envs * config.max_steps
+    half = (env.high - env.low) / 2
+    model = TD3("MlpPolicy", env, learning_rate=1e-3, buffer_size=RECIPE.buffer_size,
+                learning_starts=per_round, batch_size=RECIPE.td3.batch_size, tau=0.005,
+                gamma=discount, train_freq=(1, "step"), gradient_steps=1, policy_delay=2,
+                target_policy_noise=0.2, target_noise_clip=0.5,
+                action_noise=NormalActionNoise(np.zeros(4), RECIPE.td3.exploration_std / half),
+                policy_kwargs={"net_arch": {"pi": [128, 64], "qf": [128, 64, 60, 36]}},
+                seed=seed, device="cpu", verbose=0)
+    found: list[float] = []
+
+    class Validate(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps % per_round:
+                return True
+            cost = env.validation_cost(self.model)
+            found[:] = [self.num_timesteps // per_round, cost, time.perf_counter() - start]
+            return cost > target
+
+    model.learn(total_timesteps=rounds * per_round, callback=Validate())
+    return int(found[0]), found[1], found[2]
+
+
+class _SB3View:
+    """An SB3 ``VecEnv`` view of a batched teleopkit environment (built on first use of SB3)."""
+
+    def __new__(cls, inner: FlexTeleopVectorEnv, seed: int) -> Any:
+        from stable_baselines3.common.vec_env import VecEnv
+
+        class View(VecEnv):
+            """Actions in [-1, 1]; observations standardised with frozen warm-up statistics."""
+
+            def __init__(self) -> None:
+                from gymnasium import spaces
+
+                self.inner = inner
+                space = inner.single_action_space
+                self.low, self.high = space.low, space.high
+                size = inner.single_observation_space.shape[0]
+                super().__init__(inner.num_envs,
+                                 spaces.Box(-np.inf, np.inf, (size,), np.float32),
+                                 spaces.Box(-1.0, 1.0, (len(self.low),), np.float32))
+                self.mean, self.std = self._warm_up_statistics(seed)
+                self._seed = seed
+                self._actions = np.zeros((inner.num_envs, len(self.low)))
+
+            def _warm_up_statistics(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+                rng = np.random.default_rng(seed)
+                obs, _ = self.inner.reset(seed=seed)
+                rows, done = [obs], False
+                while not done:
+                    action = rng.uniform(self.low, self.high, (self.num_envs, len(self.low)))
+                    obs, _, terminated, truncated, _ = self.inner.step(action)
+                    rows.append(obs)
+                    done = bool(np.any(terminated | truncated))
+                stacked = np.concatenate(rows)
+                return stacked.mean(axis=0), np.maximum(stacked.std(axis=0), 1e-8)
+
+            def scale(self, obs: np.ndarray) -> np.ndarray:
+                return ((obs - self.mean) / self.std).astype(np.float32)
+
+            def gains(self, action: np.ndarray) -> np.ndarray:
+                return self.low + (np.clip(action, -1, 1) + 1) / 2 * (self.high - self.low)
+
+            def reset(self) -> np.ndarray:
+                obs, _ = self.inner.reset(seed=self._seed + 1)
+                return self.scale(obs)
+
+            def step_async(self, actions: np.ndarray) -> None:
+                self._actions = actions
+
+            def step_wait(self) -> tuple[Any, ...]:
+                obs, reward, terminated, truncated, _ = self.inner.step(self.gains(self._actions))
+                done = terminated | truncated
+                infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+                if done.any():
+                    for i in range(self.num_envs):
+                        infos[i] = {"terminal_observation": self.scale(obs[i]),
+                                    "TimeLimit.truncated": bool(truncated[i])}
+                    obs, *_ = self.inner.step(self._actions)  # the autoreset step
+                return self.scale(obs), (REWARD_SCALE * reward).astype(np.float32), done, infos
+
+            def validation_cost(self, model: Any) -> float:
+                def controller(obs: np.ndarray) -> np.ndarray:
+                    return self.gains(model.predict(self.scale(obs), deterministic=True)[0])
+
+                run = rollout(controller, RECIPE.validation_scenarios, RECIPE.validation_seed,
+                              self.inner.config)
+                return float(-run.reward.sum(axis=0).mean())
+
+            def close(self) -> None:
+                self.inner.close()
+
+            def get_attr(self, name: str, indices: Any = None) -> list[Any]:
+                return [getattr(self, name)] * self.num_envs
+
+            def set_attr(self, name: str, value: Any, indices: Any = None) -> None:
+                setattr(self, name, value)
+
+            def env_method(self, name: str, *args: Any, indices: Any = None,
+                           **kwargs: Any) -> list[Any]:
+                return [getattr(self, name)(*args, **kwargs)] * self.num_envs
+
+            def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
+                return [False] * self.num_envs
+
+        return View()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
+    parser.add_argument("--rounds", type=int, default=12)
+    parser.add_argument("--discounts", nargs="+", type=float, default=[0.95, 0.99])
+    parser.add_argument("--which", nargs="+", default=["teleopkit", "sb3"])
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    start = time.perf_counter()
+    static = best_static_gains().gains
+    frozen = rollout(ConstantGains(static), RECIPE.validation_scenarios, RECIPE.validation_seed,
+                     FlexTeleopConfig())
+    target = 0.9 * float(-frozen.reward.sum(axis=0).mean())
+    print(f"target validation cost {target:.0f} (frozen best static gains "
+          f"{static.round(3).tolist()}, found in {time.perf_counter() - start:.0f} s)")
+    config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
+    trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
+    print("\n| trainer | discount | seed | round | validation cost | time to it [s] |")
+    print("|---|---|---|---|---|---|")
+    for name in args.which:
+        for discount in args.discounts:
+            for seed in args.seeds:
+                done, cost, wall = trainers[name](seed, discount, args.rounds, target, config)
+                mark = "" if cost <= target else f" (not within {args.rounds} rounds)"
+                print(f"| {name} | {discount:g} | {seed} | {done} | {cost:.0f}{mark} | "
+                      f"{wall:.0f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
