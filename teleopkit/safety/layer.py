@@ -1,12 +1,13 @@
 """The safety layer's interface: what every projection onto a certified set offers.
 
 Every remote gain that reaches the plant passes through a :class:`SafetyLayer` built on a
-certificate (:func:`~teleopkit.safety.factory.layer_for`): :class:`~teleopkit.safety.polytope.
-PolytopeLayer` for the classes whose set is a polytope (frozen, switching, rate-bounded gains) and
-:class:`~teleopkit.safety.schedule.ScheduleLayer` for the scheduled classes, whose set at each
-step depends on the episode so far. A layer owns that history: :meth:`SafetyLayer.reset` starts
-an episode, :meth:`SafetyLayer.step` projects one control step's raw gains and remembers what it
-applied, and :meth:`SafetyLayer.observe` takes the measurements a tank is paid from.
+certificate (:func:`~teleopkit.safety.factory.layer_for`):
+:class:`~teleopkit.safety.polytope.PolytopeLayer` for the classes whose set is a polytope (frozen,
+switching, rate-bounded gains) and :class:`~teleopkit.safety.schedule.ScheduleLayer` for the
+scheduled classes, whose set at each step depends on the episode so far. A layer owns that history:
+:meth:`SafetyLayer.reset` starts an episode, :meth:`SafetyLayer.step` projects one control step's
+raw gains and remembers what it applied, and :meth:`SafetyLayer.observe` takes the measurements a
+tank is paid from.
 
 A layer is total: a non-finite raw action yields a certified fallback, and every step reports
 what it did (:class:`Projection`).

@@ -360,9 +360,10 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
     tl_max, tr_max : float
         Delay bounds in seconds.
     variation : {"frozen", "switching"}
-        Gain class. Frozen gains beyond :func:`~teleopkit.certification.lmi.enumerated` are
+        Gain class. Frozen gains beyond :func:`~teleopkit.certification.lmi.systems.enumerated` are
         covered by cells (:func:`cover_certificate`); everything else is one LMI
-        (:func:`~teleopkit.certification.lmi.lmi_certificate`), reported as a one-cell cover.
+        (:func:`~teleopkit.certification.lmi.systems.lmi_certificate`), reported as a one-cell
+        cover.
     method : str
         A :data:`certify.METHODS` name.
     budget : int
