@@ -153,6 +153,12 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_show_sourcelink = False
+# Source links point at the module an entry is documented in: following a type alias's value
+# (``tuple[...]``) would send viewcode to ``builtins``, which has no source page.
+viewcode_follow_imported_members = False
+# Pages without sub-pages have no section to navigate: no empty "Section Navigation" sidebar.
+html_sidebars = {page: [] for page in ("getting_started", "certified", "performance",
+                                       "troubleshooting", "changelog", "citing", "references")}
 
 
 def _skip_aliases(app: object, what: str, name: str, obj: object, skip: bool,
