@@ -374,7 +374,8 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
                       "while it shrinks at a constant stiffness, its three numbers tuned on "
                       f"training scenarios; `open-loop ({label})` the tuner's mean gain schedule "
                       "over 16 training scenarios, replayed as a function of time alone."]
-    lines += [f"`{name}`: {text}" for name, text in (others or {}).items()]
+    for name, text in (others or {}).items():
+        lines += ["", f"`{name}`: {text}"]
     lines += [
         "",
         "`cost` is the paper's: the sum over the episode's control periods of "
