@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RunLocked", "atomic_write", "run_lock", "write_csv"]
+__all__ = ["RunLocked", "atomic_write", "check_unlocked", "lock_holder", "run_lock",
+           "write_csv"]
 
 
 def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> None:
@@ -77,8 +78,20 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _holder(lock: Path) -> dict[str, Any] | None:
-    """The live run that holds ``lock``, or None (no lock, or the lock of a dead run)."""
+def lock_holder(lock: str | Path) -> dict[str, Any] | None:
+    """The live run that holds ``lock`` (its ``pid`` and ``host``), or None.
+
+    Parameters
+    ----------
+    lock : str or Path
+        A lock file of :func:`run_lock`.
+
+    Returns
+    -------
+    dict or None
+        None when there is no lock, or it was left by a run whose process is gone.
+    """
+    lock = Path(lock)
     try:
         holder = json.loads(lock.read_text())
         pid, host = int(holder["pid"]), str(holder["host"])
@@ -87,6 +100,27 @@ def _holder(lock: Path) -> dict[str, Any] | None:
     if host != socket.gethostname():  # another machine's run: assume it lives
         return holder
     return holder if pid != os.getpid() and _alive(pid) else None
+
+
+def check_unlocked(lock: str | Path, what: str) -> None:
+    """Refuse at once if a live run holds ``lock`` (a lock left by a killed run is no lock).
+
+    Parameters
+    ----------
+    lock : str or Path
+        A lock file of :func:`run_lock`.
+    what : str
+        What is locked, for the message.
+
+    Raises
+    ------
+    RunLocked
+        One line naming the run that holds it.
+    """
+    holder = lock_holder(lock)
+    if holder is not None:
+        raise RunLocked(f"{what} is in use by another run (process {holder['pid']} on "
+                        f"{holder['host']}); wait for it to end or choose another output")
 
 
 @contextlib.contextmanager
@@ -121,11 +155,7 @@ def run_lock(lock: str | Path, what: str) -> Iterator[None]:
                 handle.write(record)
             break
         except FileExistsError:
-            holder = _holder(path)
-            if holder is not None:
-                raise RunLocked(f"{what} is in use by another run (process {holder['pid']} on "
-                                f"{holder['host']}); wait for it to end or choose another "
-                                "output") from None
+            check_unlocked(path, what)
             path.unlink(missing_ok=True)  # a killed run's lock
     else:
         raise RunLocked(f"{what}: could not take the lock {path}")

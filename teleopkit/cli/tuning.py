@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -56,8 +57,9 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     learning rates 1e-3 and discount 0.95, best policy kept by validation cost; the first round
     explores with uniform random gains.
     """
+    from teleopkit.files import check_unlocked
     from teleopkit.rl.env import FlexTeleopConfig
-    from teleopkit.rl.training import CHECKPOINT, train
+    from teleopkit.rl.training import CHECKPOINT, LOCK, train
 
     check_output_dir(out, "--out")
     if certificate is not None and variation is not None:
@@ -69,6 +71,7 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     if not resume and (out / CHECKPOINT).exists():
         raise click.BadParameter(f"{out / CHECKPOINT} exists; pass --resume to continue it or "
                                  "choose another directory", param_hint="'--out'")
+    check_unlocked(out / LOCK, str(out))  # before anything is printed
     chosen = _training_certificate(out, resume, variation, certificate)
     recipe = _training_config(ctx, out, resume, steps, envs, seed)
     per_round = recipe.num_envs * FlexTeleopConfig().max_steps
@@ -81,7 +84,8 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     click.echo(f"training under {chosen.gain_variation} ({chosen.variation.describe()}) on the "
                "certified set of the box " + _box_text(chosen), err=True)
     single_thread()
-    result = train(recipe, out, resume=resume, env_config=FlexTeleopConfig(certificate=chosen))
+    result = train(recipe, out, resume=resume, env_config=FlexTeleopConfig(certificate=chosen),
+                   progress=sys.stderr.isatty())
     row = result.log.iloc[-1]
     click.echo(f"trained {int(row['step'])} steps under {chosen.gain_variation}; best "
                f"validation cost {result.log['validation_cost'].min():.5g}; policies in {out}")

@@ -6,6 +6,7 @@ Imported only where a Dask cluster runs a campaign (it needs ``dask[distributed]
 from __future__ import annotations
 
 import contextlib
+import logging
 import signal
 from typing import Any
 
@@ -23,13 +24,14 @@ class WorkerSetup(WorkerPlugin):
     client's process, where numba then refuses to compile once its threads run with another
     count. A Ctrl-C in the terminal reaches every process of the group; the workers ignore it
     (the client's process stops the campaign and shuts the cluster down) instead of each
-    printing a traceback.
+    printing a traceback, and the chunks cancelled by that shutdown are not reported as
+    warnings (``distributed.worker.state_machine``; errors still are).
     """
 
     name = "teleopkit-worker-setup"
 
     def setup(self, worker: Any) -> None:
-        """Cap numba's threads of this worker process at one; ignore SIGINT in it.
+        """Cap numba's threads of this worker process at one; ignore SIGINT and cancellations.
 
         Parameters
         ----------
@@ -41,3 +43,4 @@ class WorkerSetup(WorkerPlugin):
         numba.set_num_threads(1)
         with contextlib.suppress(ValueError):  # only the main thread may set a handler
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+        logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)

@@ -381,3 +381,17 @@ def test_bad_specs_raise_one_line_value_errors(data, message, tmp_path):
     with pytest.raises(ValueError, match=re.escape(message)) as error:
         run_campaign(data, tmp_path / "bad.parquet", client="synchronous")
     assert "\n" not in str(error.value)
+
+
+def test_a_campaign_that_fails_before_its_first_chunk_leaves_nothing_behind(tmp_path,
+                                                                             monkeypatch):
+    import teleopkit.robustness.campaign as campaign
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the cluster went away")
+
+    monkeypatch.setattr(campaign, "_execute", broken)
+    out = tmp_path / "o.csv"
+    with pytest.raises(RuntimeError, match="went away"):
+        campaign.run_campaign(KR_ONLY, out, client="synchronous")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no chunks, no manifest, no lock
