@@ -185,7 +185,7 @@ def nuno_delay_margin(params: TeleoperatorParams, box: GainBox) -> float:
 
 
 def certify_frozen(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                        variation: GainVariation) -> GainCertificate:
+                   variation: GainVariation) -> GainCertificate:
     """The closed-form certificate of a gain box (frozen gains only).
 
     Parameters
