@@ -231,7 +231,7 @@ def _delay_lower(values: Any) -> tuple[float, float]:
     lower = tuple(float(v) for v in values)
     if len(lower) != 2 or not all(math.isfinite(v) and v >= 0 for v in lower):
         raise ValueError(f"delay_lower must be two non-negative numbers, got {list(values)}")
-    return lower  # type: ignore[return-value]
+    return lower[0], lower[1]
 
 
 def _json_float(value: float) -> float | str:

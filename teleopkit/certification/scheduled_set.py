@@ -169,7 +169,7 @@ class ScheduledSet:
             On a missing or malformed field.
         """
         try:
-            return cls(**{key: tuple(float(v) for v in value) if isinstance(value, list)
-                          else value for key, value in data.items()})
+            return cls(**{key: tuple(float(v) for v in value)  # type: ignore[arg-type]
+                          if isinstance(value, list) else value for key, value in data.items()})
         except TypeError as error:
             raise ValueError(f"malformed scheduled set: {error}") from None

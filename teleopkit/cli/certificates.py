@@ -74,9 +74,9 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
     params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
     proven: list[GainCertificate] = []
-    if "lmi" in methods_for(method, variation) and not as_json:  # type: ignore[arg-type]
+    if "lmi" in methods_for(method, variation) and not as_json:
         click.echo("closed form (instant; the LMI answer follows):")
-        closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)  # type: ignore
+        closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)
         click.echo(_indented(certificate_table(closed, footer=False)))
 
     def improved(certificate: GainCertificate) -> None:
@@ -87,7 +87,7 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
 
     try:
         with progress(show_progress):
-            results = certify_all(params, box, tl_max, tr_max, method, variation,  # type: ignore
+            results = certify_all(params, box, tl_max, tr_max, method, variation,
                                   tl_min, tr_min, workers=workers, cache=cache,
                                   on_proven=improved)
     except KeyboardInterrupt:

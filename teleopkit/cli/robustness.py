@@ -135,7 +135,7 @@ def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, 
         check_output(out, "--out", (".csv",))
     params = paper_setup()
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
-    certificate = certify_gains(params, box, tl_max, tr_max, method, variation)  # type: ignore
+    certificate = certify_gains(params, box, tl_max, tr_max, method, variation)
     space = SearchSpace(params, certificate, switch_gains, delays, duration=duration)
     result = search(space, objective, search_method, budget,  # type: ignore[arg-type]
                     population, seed)

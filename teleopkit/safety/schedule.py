@@ -287,12 +287,11 @@ class ScheduleLayer(SafetyLayer):
             first step: then no floor applies) and, with a tank, the measured remote energy
             ``E_r``: the step's floor follows from them.
         """
-        started = self._prev is not None and self._prev.shape[0] == batch
-        level = self._level if started else np.full(batch, self.scheduled.initial)
+        prev = self._prev if self._prev is not None and self._prev.shape[0] == batch else None
+        level = self._level if prev is not None else np.full(batch, self.scheduled.initial)
         kappa = np.full(batch, self.scheduled.kappa_low)
-        if started:
-            kappa = np.where(np.isfinite(self._prev[:, 0]),
-                             self.scheduled.kappa(self._prev), kappa)
+        if prev is not None:
+            kappa = np.where(np.isfinite(prev[:, 0]), self.scheduled.kappa(prev), kappa)
         columns = [level, kappa]
         if self._mode == TANK:
             columns.append(self._energy if self._energy.shape == (batch,) else np.zeros(batch))

@@ -48,9 +48,9 @@ def _start_state(params: TeleoperatorParams) -> np.ndarray:
     """The plant's initial state as a state vector (velocities and integrals zero)."""
     layout = StateLayout(params.n_joints)
     state = np.zeros(layout.size)
-    for name, value in (("ql", params.initial.local), ("qr", params.initial.remote),
-                        ("theta", params.initial.motor)):
-        state[layout.slice(name)] = value
+    state[layout.slice("ql")] = params.initial.local
+    state[layout.slice("qr")] = params.initial.remote
+    state[layout.slice("theta")] = params.initial.motor
     return state
 
 
@@ -139,7 +139,7 @@ class StorageGuarantee:
         StorageGuarantee
             The bounds.
         """
-        return cls(**{key: tuple(value) if isinstance(value, list) else value
+        return cls(**{key: tuple(value) if isinstance(value, list) else value  # type: ignore[arg-type]
                       for key, value in data.items()})
 
     def describe(self) -> str:
