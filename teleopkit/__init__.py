@@ -35,6 +35,7 @@ _EXPORTS = {
     "GainCertificate": "certification.gain_certificate",
     "certify_gains": "certification.certifier",
     "SafetyLayer": "safety.layer",
+    "layer_for": "safety.factory",
 }
 
 __all__ = sorted(_EXPORTS)
