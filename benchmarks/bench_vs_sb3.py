@@ -30,6 +30,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import torch
+from gymnasium import spaces
+from stable_baselines3 import TD3
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.vec_env import VecEnv
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains
@@ -71,10 +76,6 @@ def _teleopkit(seed: int, discount: float, rounds: int, target: float,
 def _sb3(seed: int, discount: float, rounds: int, target: float,
          config: FlexTeleopConfig) -> tuple[int, float, float]:
     """Round, validation cost and wall time of SB3's TD3 at the first round below."""
-    from stable_baselines3 import TD3
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.noise import NormalActionNoise
-
     start = time.perf_counter()
     env = _SB3View(FlexTeleopVectorEnv(RECIPE.num_envs, config), seed)
     per_round = RECIPE.num_envs * config.max_steps
@@ -100,90 +101,86 @@ def _sb3(seed: int, discount: float, rounds: int, target: float,
     return int(found[0]), found[1], found[2]
 
 
-class _SB3View:
-    """An SB3 ``VecEnv`` view of a batched teleopkit environment (built on first use of SB3)."""
+class _SB3View(VecEnv):
+    """An SB3 ``VecEnv`` view of a batched teleopkit environment.
 
-    def __new__(cls, inner: FlexTeleopVectorEnv, seed: int) -> Any:
-        from stable_baselines3.common.vec_env import VecEnv
+    Actions in ``[-1, 1]`` rescaled onto the gain box; observations standardised with
+    statistics frozen from a warm-up episode of uniform random gains.
+    """
 
-        class View(VecEnv):
-            """Actions in [-1, 1]; observations standardised with frozen warm-up statistics."""
+    def __init__(self, inner: FlexTeleopVectorEnv, seed: int) -> None:
+        self.inner = inner
+        space = inner.single_action_space
+        self.low, self.high = space.low, space.high
+        size = inner.single_observation_space.shape[0]
+        super().__init__(inner.num_envs,
+                         spaces.Box(-np.inf, np.inf, (size,), np.float32),
+                         spaces.Box(-1.0, 1.0, (len(self.low),), np.float32))
+        self.mean, self.std = self._warm_up_statistics(seed)
+        self._seed = seed
+        self._actions = np.zeros((inner.num_envs, len(self.low)))
 
-            def __init__(self) -> None:
-                from gymnasium import spaces
+    def _warm_up_statistics(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        rng = np.random.default_rng(seed)
+        obs, _ = self.inner.reset(seed=seed)
+        rows, done = [obs], False
+        while not done:
+            action = rng.uniform(self.low, self.high, (self.num_envs, len(self.low)))
+            obs, _, terminated, truncated, _ = self.inner.step(action)
+            rows.append(obs)
+            done = bool(np.any(terminated | truncated))
+        stacked = np.concatenate(rows)
+        return stacked.mean(axis=0), np.maximum(stacked.std(axis=0), 1e-8)
 
-                self.inner = inner
-                space = inner.single_action_space
-                self.low, self.high = space.low, space.high
-                size = inner.single_observation_space.shape[0]
-                super().__init__(inner.num_envs,
-                                 spaces.Box(-np.inf, np.inf, (size,), np.float32),
-                                 spaces.Box(-1.0, 1.0, (len(self.low),), np.float32))
-                self.mean, self.std = self._warm_up_statistics(seed)
-                self._seed = seed
-                self._actions = np.zeros((inner.num_envs, len(self.low)))
+    def scale(self, obs: np.ndarray) -> np.ndarray:
+        return ((obs - self.mean) / self.std).astype(np.float32)
 
-            def _warm_up_statistics(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
-                rng = np.random.default_rng(seed)
-                obs, _ = self.inner.reset(seed=seed)
-                rows, done = [obs], False
-                while not done:
-                    action = rng.uniform(self.low, self.high, (self.num_envs, len(self.low)))
-                    obs, _, terminated, truncated, _ = self.inner.step(action)
-                    rows.append(obs)
-                    done = bool(np.any(terminated | truncated))
-                stacked = np.concatenate(rows)
-                return stacked.mean(axis=0), np.maximum(stacked.std(axis=0), 1e-8)
+    def gains(self, action: np.ndarray) -> np.ndarray:
+        return self.low + (np.clip(action, -1, 1) + 1) / 2 * (self.high - self.low)
 
-            def scale(self, obs: np.ndarray) -> np.ndarray:
-                return ((obs - self.mean) / self.std).astype(np.float32)
+    def reset(self) -> np.ndarray:
+        obs, _ = self.inner.reset(seed=self._seed + 1)
+        return self.scale(obs)
 
-            def gains(self, action: np.ndarray) -> np.ndarray:
-                return self.low + (np.clip(action, -1, 1) + 1) / 2 * (self.high - self.low)
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
 
-            def reset(self) -> np.ndarray:
-                obs, _ = self.inner.reset(seed=self._seed + 1)
-                return self.scale(obs)
+    def step_wait(self) -> tuple[Any, ...]:
+        obs, reward, terminated, truncated, _ = self.inner.step(self.gains(self._actions))
+        done = terminated | truncated
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        if done.any():
+            for i in range(self.num_envs):
+                infos[i] = {"terminal_observation": self.scale(obs[i]),
+                            "TimeLimit.truncated": bool(truncated[i])}
+            obs, *_ = self.inner.step(self._actions)  # the autoreset step
+        return self.scale(obs), (REWARD_SCALE * reward).astype(np.float32), done, infos
 
-            def step_async(self, actions: np.ndarray) -> None:
-                self._actions = actions
+    def validation_cost(self, model: Any) -> float:
+        def controller(obs: np.ndarray) -> np.ndarray:
+            return self.gains(model.predict(self.scale(obs), deterministic=True)[0])
 
-            def step_wait(self) -> tuple[Any, ...]:
-                obs, reward, terminated, truncated, _ = self.inner.step(self.gains(self._actions))
-                done = terminated | truncated
-                infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-                if done.any():
-                    for i in range(self.num_envs):
-                        infos[i] = {"terminal_observation": self.scale(obs[i]),
-                                    "TimeLimit.truncated": bool(truncated[i])}
-                    obs, *_ = self.inner.step(self._actions)  # the autoreset step
-                return self.scale(obs), (REWARD_SCALE * reward).astype(np.float32), done, infos
+        run = rollout(controller, RECIPE.validation_scenarios, RECIPE.validation_seed,
+                      self.inner.config)
+        return float(-run.reward.sum(axis=0).mean())
 
-            def validation_cost(self, model: Any) -> float:
-                def controller(obs: np.ndarray) -> np.ndarray:
-                    return self.gains(model.predict(self.scale(obs), deterministic=True)[0])
+    def close(self) -> None:
+        self.inner.close()
 
-                run = rollout(controller, RECIPE.validation_scenarios, RECIPE.validation_seed,
-                              self.inner.config)
-                return float(-run.reward.sum(axis=0).mean())
+    def get_attr(self, name: str, indices: Any = None) -> list[Any]:
+        return [getattr(self, name)] * self.num_envs
 
-            def close(self) -> None:
-                self.inner.close()
+    def set_attr(self, name: str, value: Any, indices: Any = None) -> None:
+        setattr(self, name, value)
 
-            def get_attr(self, name: str, indices: Any = None) -> list[Any]:
-                return [getattr(self, name)] * self.num_envs
+    def env_method(self, name: str, *args: Any, indices: Any = None,
+                   **kwargs: Any) -> list[Any]:
+        return [getattr(self, name)(*args, **kwargs)] * self.num_envs
 
-            def set_attr(self, name: str, value: Any, indices: Any = None) -> None:
-                setattr(self, name, value)
+    def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
+        return [False] * self.num_envs
 
-            def env_method(self, name: str, *args: Any, indices: Any = None,
-                           **kwargs: Any) -> list[Any]:
-                return [getattr(self, name)(*args, **kwargs)] * self.num_envs
 
-            def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
-                return [False] * self.num_envs
-
-        return View()
 
 
 def main() -> None:

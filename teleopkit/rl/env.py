@@ -173,6 +173,7 @@ class TeleopBatch:
         self.certificate.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
                                (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
         self.loop = CertifiedLoop(layer_for(self.certificate, config.control_period))
+        self.run_time_columns = self.layer.run_time_state(1).shape[1]
         self.steps = 0
 
     @property
@@ -221,8 +222,9 @@ class TeleopBatch:
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         """The paper's observation, then the safety layer's run-time state (if it keeps one)."""
-        extra = self.layer.run_time_state(self.batch)
-        return obs if extra.shape[1] == 0 else np.concatenate([obs, extra], axis=1)
+        if not self.run_time_columns:
+            return obs
+        return np.concatenate([obs, self.layer.run_time_state(self.batch)], axis=1)
 
     def step(self, raw: np.ndarray) -> BatchStep:
         """Project, simulate and score one period.
@@ -254,7 +256,7 @@ class TeleopBatch:
                 "fallback": projection.fallback != 0, "fallback_flags": projection.fallback,
                 "active_constraints": projection.active, "time": np.full(self.batch, result.t[0]),
                 "delays": result.delays[0]}
-        if self.layer.run_time_state(1).shape[1]:
+        if self.run_time_columns:
             info["schedule"] = projection.schedule
         return BatchStep(obs, reward, failed, truncated, info, result)
 
@@ -268,7 +270,7 @@ def _spaces(config: FlexTeleopConfig, core: TeleopBatch) -> tuple[spaces.Box, sp
     """
     box = core.certificate.box
     limit = 2 * config.state_bound
-    size = 7 * box.n_joints + core.layer.run_time_state(1).shape[1]
+    size = 7 * box.n_joints + core.run_time_columns
     action = spaces.Box(box.lower, box.upper, dtype=np.float64)
     observation = spaces.Box(-limit, limit, shape=(size,), dtype=np.float64)
     return action, observation
