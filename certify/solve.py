@@ -23,6 +23,12 @@ from certify.system_data import SystemData, system_data
 __all__ = ["RETRIES", "SHARED_FORMS", "LMIProblem", "check_threads"]
 
 SOLVER = "CLARABEL"
+SOLVER_OPTIONS: dict[str, Any] = {"iterative_refinement_enable": False}
+"""Clarabel settings of every solve. Iterative refinement of the KKT solves is off: on the
+paper's two-joint teleoperator it made each solve some 1.7 times slower (the 115 solves of
+``certify --kr 1:50 --br 1:150`` took 160 s with it and 96 s without, one process) for the same
+iterations; a solution is certified only by the numpy re-check of every LMI
+(:func:`certify.check.residuals`), whatever the solver's accuracy."""
 MARGIN_CAP = 1e-4
 """Margin ``t`` beyond which the solver stops improving. A clearly feasible problem then has a
 large optimal face, whose analytic centre interior-point methods reach in few iterations;
@@ -128,7 +134,7 @@ class _Form:
                 warnings.simplefilter("ignore", UserWarning)
                 # a fresh solver: updating the last one's data keeps its equilibration, which
                 # is wrong for another system (a badly scaled one then spoils the next)
-                self.problem.solve(solver=SOLVER, warm_start=False,
+                self.problem.solve(solver=SOLVER, warm_start=False, **SOLVER_OPTIONS,
                                    **({"max_threads": threads} if threads else {}))
             status = str(self.problem.status)
         except cp.SolverError as exc:

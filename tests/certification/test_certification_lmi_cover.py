@@ -35,6 +35,7 @@ from teleopkit.certification.nuno.condition import (
     nuno_delay_margin,
     nuno_joint_margins,
     nuno_polytope,
+    weakest_first,
 )
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import paper_setup
@@ -212,3 +213,17 @@ def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, mo
         assert len(calls) == solves and sum(k is not None for k in known) == solves
     probed = sorted(range(len(todo)), key=lambda k: -promise[k])[:PROBES]
     assert calls[:PROBES] == [todo[k][1] for k in probed]  # the most promising first
+
+
+def test_the_whole_set_is_solved_beside_its_weakest_corner(one_joint):
+    polytope = GainPolytope.from_box(NARROW)
+    memo = CellMemo(one_joint, (1.0, 1.0), LMI_METHOD, (0.0, 0.0))
+    corners = polytope.vertices()
+    weakest = corners[weakest_first(one_joint, corners)[0]]
+    cover = cover_certificate(one_joint, polytope, 1.0, 1.0, memo=memo)
+    # one level: the set as one cell and its weakest corner alone, side by side
+    assert cover.certified and len(cover.cells) == 1 and cover.solves == 2
+    verdict = memo.vertex(weakest)
+    assert verdict is not None and verdict.certified
+    # no other corner is solved while the set is certified
+    assert all(memo.vertex(c) is None for c in corners if not np.array_equal(c, weakest))

@@ -10,7 +10,7 @@ import textwrap
 
 import pytest
 
-from teleopkit.certification.lmi.workers import map_solves, using_workers, workers
+from teleopkit.certification.lmi.workers import Background, map_solves, using_workers, workers
 
 SCRIPT = """
 import ast
@@ -134,3 +134,52 @@ def test_one_pool_is_kept_and_replaced_when_its_size_changes(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "[8, 9]" in done.stdout and "[2, 4, 8]" in done.stdout
     assert "replaced True True" in done.stdout
+
+
+def test_a_background_search_runs_when_asked_with_one_worker():
+    calls = []
+
+    def search(x):
+        calls.append(x)
+        return map_solves(pow, [(x, 2), (x, 3)])
+
+    with using_workers(1):
+        later = Background(search, 3)
+        assert calls == []  # nothing runs beside the caller without workers
+        assert later.result() == [9, 27] and later.result() == [9, 27] and calls == [3]
+
+
+def test_a_background_search_raises_in_the_caller():
+    def broken():
+        raise ValueError("no vertex")
+
+    with using_workers(1), pytest.raises(ValueError, match="no vertex"):
+        Background(broken).result()
+
+
+BESIDE = """
+import threading
+from teleopkit.certification.lmi import workers as parallel
+
+def search():
+    solved = parallel.map_solves(pow, [(2, 3), (3, 2)])
+    return threading.current_thread().name, parallel.workers(), solved
+
+if __name__ == "__main__":
+    with parallel.using_workers(2):
+        later = parallel.Background(search)
+        print("caller", parallel.map_solves(pow, [(2, 1), (2, 2)]))
+    print("beside", later.result())
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
+def test_a_background_search_runs_on_a_thread_in_the_callers_context(tmp_path):
+    path = tmp_path / "beside.py"
+    path.write_text(BESIDE)
+    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "3"}, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "caller [2, 4]" in done.stdout
+    # its own thread, the caller's worker count (not the environment's), the shared pool
+    assert "beside ('teleopkit-lmi-background', 2, [8, 9])" in done.stdout

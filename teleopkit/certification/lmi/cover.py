@@ -17,10 +17,10 @@ one level of the split are solved together on the local cores
 only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.  No LMI certifies
 a cell whose corner it cannot certify alone, and a corner alone is a smaller problem than a cell, so
 corners are checked before the cells that would need them: the one the closed form finds weakest
-once the whole set (the first cell) fails, then all of them once a whole level fails or the split
-has failed as many cells as the set has corners, weakest first, :data:`CORNERS_AT_ONCE` at a time. A
-gain point of the set found not certified alone, now or by an earlier cover sharing the memo, ends
-the search at once.
+side by side with the whole set (the first cell), then all of them once a whole level fails or the
+split has failed as many cells as the set has corners, weakest first, :data:`CORNERS_AT_ONCE` at
+a time. A gain point of the set found not certified alone, now or by an earlier cover sharing the
+memo, ends the search at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -228,7 +228,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
                      tuple(empty), root=root)
 
-    # once the whole set fails, the corner the closed form finds weakest is checked alone, then
+    # the corner the closed form finds weakest is checked alone beside the whole set, then
     # all corners once a level fails entirely or the split has failed as many cells as the set
     # has corners: a corner that no LMI certifies ends the search before the cells are solved
     ordered = corners[weakest_first(params, corners)]
@@ -245,7 +245,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         known = [memo.recall(box, cell) for box, cell in todo]
         fresh = [k for k, cert in enumerate(known) if cert is None]
         unchecked = [action for action in checks if memo.vertex(action) is None]
-        if solves + len(unchecked) + len(fresh) > budget:
+        beside = ([ordered[0]] if solves == 0 and len(fresh) == 1
+                  and memo.vertex(ordered[0]) is None else [])
+        if solves + len(unchecked) + len(fresh) + len(beside) > budget:
             return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
         solves += _check_alone(params, unchecked, memo)
         failed = memo.failed_vertex(polytope)
@@ -254,7 +256,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                            (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
                   max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
-        solves += _solve_level(params, todo, known, fresh, memo)
+        solves += _solve_level(params, todo, known, fresh, memo, beside)
         checks, wave, certified_before = [], [], len(cells)
         for (box, cell), cert in zip(todo, known, strict=True):
             if cert is None:  # not solved: its level's most promising cells failed
@@ -285,36 +287,45 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
 
 def _solve_level(params: TeleoperatorParams,
                  todo: list[tuple[tuple[np.ndarray, np.ndarray], GainPolytope]],
-                 known: list[Certificate | None], fresh: list[int], memo: CellMemo) -> int:
+                 known: list[Certificate | None], fresh: list[int], memo: CellMemo,
+                 beside: Sequence[np.ndarray] = ()) -> int:
     """Solve the ``fresh`` cells of a level into ``known`` and the memo; return the solves.
 
     A level of more than :data:`PROBES` cells, all of which could be split, is probed first:
     its :data:`PROBES` most promising cells (largest closed-form margin at their weakest
     vertex) are solved, and the others only if every probe is certified. Otherwise the level
-    would mostly fail (the others stay ``None``, to be split without a solve).
+    would mostly fail (the others stay ``None``, to be split without a solve). The gain
+    vertices ``beside`` are checked alone side by side with the level's first solves (the
+    first cell, the whole set, gets its weakest corner beside it: on a second core the check
+    costs no time, and it is the first thing needed when the set fails).
     """
     (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
+    corners = [(vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
+               for action in beside]
 
     def solve(indices: list[int]) -> list[Certificate]:
-        solved = map_solves(_call, [(lmi_certificate, (params, todo[k][1], tl_max, tr_max,
-                                                       "switching", method, delay_lower,
-                                                       CELL_RETRY))
-                                    for k in indices], share_cores=True)
-        for k, cert in zip(indices, solved, strict=True):
+        cells = [(lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
+                                    delay_lower, CELL_RETRY)) for k in indices]
+        solved = map_solves(_call, cells + corners, share_cores=True)
+        for action, verdict in zip(beside, solved[len(cells):], strict=True):
+            memo.record_vertex(action, verdict)
+        corners.clear()
+        for k, cert in zip(indices, solved[:len(cells)], strict=True):
             known[k] = cert
             memo.record(*todo[k], cert)
-        return solved
+        return solved[:len(cells)]
 
+    extra = len(beside)
     if len(fresh) <= PROBES or not all(_splittable(*todo[k][0]) for k in fresh):
-        return len(solve(fresh))
+        return len(solve(fresh)) + extra
     promise = [float(nuno_joint_margins(params, todo[k][1].vertices()).min()) for k in fresh]
     order = [fresh[i] for i in np.argsort(promise, kind="stable")[::-1]]
     probed = solve(order[:PROBES])
     if not all(cert.certified for cert in probed):
         _log.info("the %d most promising of %d cells failed: splitting the level", PROBES,
                   len(fresh))
-        return PROBES
-    return PROBES + len(solve(order[PROBES:]))
+        return PROBES + extra
+    return PROBES + extra + len(solve(order[PROBES:]))
 
 
 def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: CellMemo) -> int:

@@ -154,7 +154,7 @@ def gain_set_system(params: TeleoperatorParams, polytope: GainPolytope,
 def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                     tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
                     delay_lower: tuple[float, float] = NO_LOWER,
-                    retry: str = "always", threads: int = 0) -> Certificate:
+                    retry: str = "always", threads: int = 1) -> Certificate:
     """Certify a gain polytope for the delay bounds ``(T_l*, T_r*)``.
 
     Parameters
@@ -175,7 +175,8 @@ def lmi_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
         When a failed solve is tried again in balanced coordinates
         (:class:`certify.solve.LMIProblem`).
     threads : int
-        Most threads of the solver's linear algebra (0: its default).
+        Most threads of the solver's linear algebra (0: its default, every core). One by
+        default: on these LMIs a second thread makes a solve slower.
 
     Returns
     -------
@@ -191,7 +192,7 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
                      variation: str = "frozen", method: str = LMI_METHOD,
                      rtol: float = 0.02,
                      delay_lower: tuple[float, float] = NO_LOWER, h_max: float = 100.0,
-                     h_min: float = 0.0) -> Certificate:
+                     h_min: float = 0.0, threads: int = 1) -> Certificate:
     """Largest common delay bound ``T* = T_l* = T_r*`` certified for the whole polytope.
 
     Parameters
@@ -212,6 +213,9 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
         Largest bound tried (a known upper limit shortens the search).
     h_min : float
         Bounds less than this above the lower ones are not searched (0 if none above).
+    threads : int
+        Most threads of the solver's linear algebra (0: its default, every core). One by
+        default: on these LMIs a second thread makes a solve slower.
 
     Returns
     -------
@@ -222,7 +226,7 @@ def lmi_delay_margin(params: TeleoperatorParams, polytope: GainPolytope,
     """
     system = gain_set_system(params, polytope, variation)
     return max_delay_certificate(system, method, rtol=rtol, h_max=h_max, lower=list(delay_lower),
-                                 channels=CHANNELS, h_min=h_min)
+                                 channels=CHANNELS, h_min=h_min, threads=threads)
 
 
 def _vertex_system(params: TeleoperatorParams, action: np.ndarray) -> PolytopicDelaySystem:
@@ -234,7 +238,7 @@ def _vertex_system(params: TeleoperatorParams, action: np.ndarray) -> PolytopicD
 def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: float,
                        tr_max: float, method: str = LMI_METHOD,
                        delay_lower: tuple[float, float] = NO_LOWER,
-                       threads: int = 0) -> Certificate:
+                       threads: int = 1) -> Certificate:
     """Certify one constant gain vector alone for the delay bounds ``(T_l*, T_r*)``.
 
     Parameters
@@ -250,7 +254,8 @@ def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: f
     delay_lower : tuple of float
         Lower delay bounds ``(T_l_min, T_r_min)``.
     threads : int
-        Most threads of the solver's linear algebra (0: its default).
+        Most threads of the solver's linear algebra (0: its default, every core). One by
+        default: on these LMIs a second thread makes a solve slower.
 
     Returns
     -------

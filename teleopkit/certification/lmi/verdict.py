@@ -33,7 +33,7 @@ from teleopkit.certification.lmi.systems import (
     lmi_delay_margin,
     vertex_certificate,
 )
-from teleopkit.certification.lmi.workers import start_workers
+from teleopkit.certification.lmi.workers import Background, start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
@@ -181,6 +181,8 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     bounds = (tl_max, tr_max)
     whole = GainPolytope.from_box(box)
     start_workers()  # while the first solves run here
+    limit = (Background(limiting_vertex, params, whole, method, delay_lower)  # beside the covers
+             if kind == "frozen" and not enumerated(params, whole) else None)
     memo = CellMemo(params, bounds, method, delay_lower)  # shared by the covers of one question
     verdict = set_certificate(params, whole, tl_max, tr_max, kind, method,
                               delay_lower=delay_lower, memo=memo, root=(box.lower, box.upper))
@@ -213,7 +215,7 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
         violation = _lmi_violation(params, box, memo)
     known = min(bounds) if verdict.certified else 0.0
     margin, margin_details = _lmi_margin(params, whole, kind, method, known,
-                                         proof_details.get("proof"), delay_lower)
+                                         proof_details.get("proof"), delay_lower, limit)
     details = {"lmi_method": method, "solver_status": cert.status,
                "residuals": dict(cert.residuals), "vertices": len(cert.system.vertices),
                "cells": len(verdict.cells), "solves": verdict.solves,
@@ -270,7 +272,9 @@ def _how(params: TeleoperatorParams, whole: GainPolytope, kind: str, verdict: Co
 
 def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, method: str,
                 known: float, known_proof: dict[str, Any] | None,
-                delay_lower: tuple[float, float]) -> tuple[float, dict[str, Any]]:
+                delay_lower: tuple[float, float],
+                limiting: Background[tuple[tuple[float, ...], float]] | None = None
+                ) -> tuple[float, dict[str, Any]]:
     """Delay margin of a gain set and how it was found (cells for constant gains of large sets).
 
     The whole set's margin with one functional is a lower bound for constant gains beyond
@@ -279,7 +283,7 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     between the two by covers (:func:`~teleopkit.certification.lmi.cover.cover_margin`, with a
     budget of :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the
     limiting vertex would be tiny (more than 20 minutes on the paper's whole box), reports the
-    bounds.
+    bounds. ``limiting`` is the limiting vertex's search if it was started earlier.
     """
     def single(h_max: float = 100.0) -> tuple[float, dict[str, Any] | None]:
         if h_max <= max(delay_lower) + MARGIN_FLOOR:
@@ -292,7 +296,8 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     if kind != "frozen" or enumerated(params, whole):
         margin, proof = single()
         return margin, {"margin_proof": proof}
-    (vertex, limit) = limiting_vertex(params, whole, method, delay_lower)
+    (vertex, limit) = (limiting.result() if limiting is not None
+                       else limiting_vertex(params, whole, method, delay_lower))
     found = (cover_margin(params, whole, method, attempts=2, known=known, budget=MARGIN_BUDGET,
                           limit=(vertex, limit), delay_lower=delay_lower)
              if known > 0 else None)
