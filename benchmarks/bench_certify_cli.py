@@ -42,9 +42,16 @@ def run(source: Path, args: list[str], env: dict[str, str]) -> tuple[float, dict
 
 
 def summary(certificate: dict) -> str:
-    """Verdict and margin of a certificate, in a few words."""
+    """Verdict, offered polytope, margin and margin limit of a certificate, in a few words."""
+    details = certificate.get("details", {})
     verdict = "certified" if certificate["certified"] else "not certified"
-    return f"{verdict}, margin {float(certificate['delay_margin']):.4g} s"
+    polytope = ("" if certificate["certified"] else
+                f", cut s = {float(details.get('polytope_scale', 1.0)):g}"
+                f"{' proven' if certificate.get('polytope_certified') else ''}")
+    limit = (f", limit {float(details['margin_limit']):.4g} s" if "margin_limit" in details
+             else "")
+    return (f"{verdict}{polytope}, margin {float(certificate['delay_margin']):.4g} s"
+            f"{limit}")
 
 
 def measure(label: str, source: Path, cases: list[str], cache: bool) -> list[dict]:

@@ -22,7 +22,7 @@ from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.certification.lmi.workers import using_workers
+from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
@@ -70,6 +70,8 @@ def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
 
     def answer(name: str) -> GainCertificate:
         def compute() -> GainCertificate:
+            if name == "lmi":  # the workers start while the LMI modules are imported here
+                start_workers()
             return certify_with(name, params, box, tl_max, tr_max, checked, lower, on_proven)
 
         if name != "lmi" or not cache:  # the closed form is instant

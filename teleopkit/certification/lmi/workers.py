@@ -16,6 +16,9 @@ dense blocks of these LMIs threads cost more than they give: with two workers ea
 BLAS and two solver threads on two cores, a level of cells took as long as solving them one
 after the other in one process.
 
+A search whose result is needed later (the limiting gain vertex's delay margin) runs beside the
+covers (:class:`Background`), on the workers they leave idle.
+
 A worker starts by importing the caller's main module, as every non-fork start of
 :mod:`multiprocessing` does, so a script must keep its work under
 ``if __name__ == "__main__":``. A script file without that guard would run again in each worker;
