@@ -17,6 +17,7 @@ from certify.certificate import Certificate
 from certify.channels import Channels
 from certify.check import RTOL, residuals
 from certify.conditions import LMIMethod, check_mu, delay_class_text, lower_bounds
+from certify.form_store import load_form, save_form
 from certify.system import PolytopicDelaySystem
 from certify.system_data import SystemData, system_data
 
@@ -114,6 +115,10 @@ class _Form:
         constraints += [cp.sum(scale) <= 1, self.t <= MARGIN_CAP]
         self.problem = cp.Problem(cp.Maximize(self.t), constraints)
 
+    def compile(self) -> None:
+        """Compile the problem for the solver now (cvxpy's DPP), rather than at the first solve."""
+        self.problem.get_problem_data(SOLVER)
+
     def data_for(self, system: PolytopicDelaySystem) -> SystemData | None:
         """The numbers of ``system`` in this form, or ``None`` if the form cannot solve it."""
         if not self.channels.valid_for(system):
@@ -169,7 +174,11 @@ def _family(system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
 
 def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | None,
                  channels: Channels, scaling: NDArray[np.float64]) -> tuple[_Form, SystemData]:
-    """A kept form that solves ``system`` (built and kept if none does), and its data."""
+    """A kept form that solves ``system``, and its data.
+
+    If none is kept, one is read from the directory of :func:`certify.form_store.share_forms`
+    (compiled by another process) or else built, compiled and saved there.
+    """
     key = _family(system, method, mu, channels, scaling)
     forms = _SHARED.setdefault(key, [])
     _SHARED.move_to_end(key)
@@ -178,7 +187,12 @@ def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | No
         if data is not None:
             return form, data
     data = system_data(method, system, channels, mu)
-    form = _Form(system, method, mu, channels, data)
+    stored = (*key, data.structure())
+    form = load_form(stored)
+    if form is None or form.data_for(system) is None:
+        form = _Form(system, method, mu, channels, data)
+        form.compile()
+        save_form(stored, form)
     forms.append(form)
     while sum(len(f) for f in _SHARED.values()) > SHARED_FORMS:
         oldest = next(iter(_SHARED))

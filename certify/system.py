@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -330,10 +331,15 @@ class PolytopicDelaySystem:
         list of LinearDelaySystem
             The systems whose hull the certificate covers, vertex-major.
         """
+        return list(self._corners)
+
+    @functools.cached_property
+    def _corners(self) -> tuple[LinearDelaySystem, ...]:
+        """:meth:`corners`, built once (the channels, data and balancing all read them)."""
         if self.uncertainty is None:
-            return list(self.vertices)
+            return self.vertices
         points = self.uncertainty.points
-        return [v.shifted(self.uncertainty, theta) for v in self.vertices for theta in points]
+        return tuple(v.shifted(self.uncertainty, theta) for v in self.vertices for theta in points)
 
     def point(self, weights: Sequence[float]) -> LinearDelaySystem:
         """Return the convex combination of the vertices with the given weights.

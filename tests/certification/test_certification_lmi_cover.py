@@ -90,7 +90,9 @@ def test_after_a_wholly_failed_level_the_next_cells_are_quarters(tight_cover):
     assert cover.certified and all(box is not None for box in cover.boxes)  # the root failed
     ratios = {tuple(np.round(upper / lower, 9)) for lower, upper in cover.boxes}
     assert ratios == {(np.sqrt(2).round(9),) * 2}  # both gains halved once: no halves solved
-    assert cover.solves == 1 + 1 + 4  # the root, its weakest corner alone, the four quarters
+    # the root and its weakest corner alone, the next two corners after the root failed, the
+    # four quarters
+    assert cover.solves == 1 + 1 + CORNERS_AT_ONCE + 4
 
 
 def test_a_spent_budget_is_not_certified(one_joint):

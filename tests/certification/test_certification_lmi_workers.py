@@ -136,6 +136,34 @@ def test_one_pool_is_kept_and_replaced_when_its_size_changes(tmp_path):
     assert "replaced True True" in done.stdout
 
 
+SHARED_FORMS_SCRIPT = """
+import os
+from certify.form_store import shared_directory
+
+def directory(_):
+    return str(shared_directory()), os.getpid()
+
+if __name__ == "__main__":
+    from teleopkit.certification.lmi.workers import map_solves, shutdown_workers
+    seen = map_solves(directory, [(k,) for k in range(4)])
+    print([(d == str(shared_directory()), p != os.getpid()) for d, p in seen])
+    shutdown_workers()
+    print(os.path.exists(seen[0][0]), shared_directory())
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
+def test_the_pool_shares_compiled_problems_through_one_directory_it_removes(tmp_path):
+    path = tmp_path / "forms.py"
+    path.write_text(SHARED_FORMS_SCRIPT)
+    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    assert done.returncode == 0, done.stderr
+    during, after = done.stdout.splitlines()
+    assert ast.literal_eval(during) == [(True, True)] * 4  # the workers' directory is the main's
+    assert after == "False None"
+
+
 def test_a_background_search_runs_when_asked_with_one_worker():
     calls = []
 

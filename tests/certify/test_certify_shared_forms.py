@@ -1,12 +1,12 @@
 """One DPP problem per structure: systems of the same structure share it, and get the answers of
-a problem built for them alone."""
+a problem built for them alone; other processes read it back instead of compiling it again."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from certify import AffineUncertainty, Direction, PolytopicDelaySystem, max_delay
+from certify import AffineUncertainty, Direction, PolytopicDelaySystem, form_store, max_delay
 from certify import solve as solve_module
 from certify.methods import get_method
 from certify.solve import SHARED_FORMS, LMIProblem
@@ -66,3 +66,53 @@ def test_at_most_shared_forms_are_kept(benchmark_system, no_shared_forms):
                                         AffineUncertainty(DIRECTIONS, points)),
                    get_method("rcc"), None)
     assert sum(len(forms) for forms in solve_module._SHARED.values()) == SHARED_FORMS
+
+
+@pytest.fixture
+def shared_directory(tmp_path, no_shared_forms):
+    form_store.share_forms(tmp_path)
+    yield tmp_path
+    form_store.share_forms(None)
+
+
+def test_a_compiled_problem_is_read_back_instead_of_compiled_again(benchmark_system,
+                                                                   shared_directory,
+                                                                   monkeypatch):
+    systems = [_family(benchmark_system, *r) for r in ((-0.5, 0.1), (-0.2, 0.4))]
+    alone = max_delay(systems[1], "rcc", rtol=1e-4)  # compiled here, saved
+    assert len(list(shared_directory.glob("*.pickle"))) == 1
+    solve_module._SHARED.clear()  # as in another process of the run
+
+    def no_compile(self):
+        raise AssertionError("compiled again")
+
+    monkeypatch.setattr(solve_module._Form, "compile", no_compile)
+    assert max_delay(systems[1], "rcc", rtol=1e-4) == pytest.approx(alone, rel=1e-9)
+    cert = LMIProblem(systems[0], get_method("rcc"), None).solve([0.5])
+    assert cert.certified and cert.verify()
+
+
+def test_an_unreadable_shared_problem_is_compiled_again(benchmark_system, shared_directory):
+    system = _family(benchmark_system, -0.5, 0.1)
+    expected = max_delay(system, "rcc", rtol=1e-4)
+    (saved,) = shared_directory.glob("*.pickle")
+    saved.write_bytes(b"not a pickle")
+    solve_module._SHARED.clear()
+    assert max_delay(system, "rcc", rtol=1e-4) == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_process_that_stops_sharing_reads_nothing_back(tmp_path):
+    form_store.share_forms(tmp_path)
+    form_store.save_form(("key",), {"problem": 1})
+    assert form_store.load_form(("key",)) == {"problem": 1}
+    assert form_store.load_form(("other",)) is None
+    form_store.share_forms(None)
+    assert form_store.load_form(("key",)) is None
+    form_store.save_form(("new",), {"problem": 2})
+    assert len(list(tmp_path.iterdir())) == 1
+
+
+def test_problems_are_shared_only_through_a_directory(tmp_path):
+    with pytest.raises(ValueError, match="not a directory"):
+        form_store.share_forms(tmp_path / "missing")
+    assert form_store.shared_directory() is None

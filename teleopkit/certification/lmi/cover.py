@@ -17,10 +17,11 @@ one level of the split are solved together on the local cores
 only after an accurate solve (:data:`CELL_RETRY`): a failed cell is split anyway.  No LMI certifies
 a cell whose corner it cannot certify alone, and a corner alone is a smaller problem than a cell, so
 corners are checked before the cells that would need them: the one the closed form finds weakest
-side by side with the whole set (the first cell), then all of them once a whole level fails or the
-split has failed as many cells as the set has corners, weakest first, :data:`CORNERS_AT_ONCE` at
-a time. A gain point of the set found not certified alone, now or by an earlier cover sharing the
-memo, ends the search at once.
+side by side with the whole set (the first cell), the next :data:`CORNERS_AT_ONCE` weakest after
+the first failure, then all of them once a whole level fails or the split has failed as many
+cells as the set has corners, weakest first, :data:`CORNERS_AT_ONCE` at a time. A gain point of
+the set found not certified alone, now or by an earlier cover sharing the memo, ends the search
+at once.
 
 The delay margin of constant gains follows the same way (:func:`cover_margin`): the frozen LMI
 margin of the vertex that limits the closed form bounds it from above, and covers are tried at
@@ -249,7 +250,8 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                   and memo.vertex(ordered[0]) is None else [])
         if solves + len(unchecked) + len(fresh) + len(beside) > budget:
             return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
-        solves += _check_alone(params, unchecked, memo)
+        if memo.failed_vertex(polytope) is None:  # (one checked beside the last level may fail)
+            solves += _check_alone(params, unchecked, memo)
         failed = memo.failed_vertex(polytope)
         if failed is not None:
             return partial(f"the gain vertex {failed[0].tolist()} is not certified alone",
@@ -276,8 +278,9 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         level_failed = len(cells) == certified_before
         if level_failed:
             wave = _split_again(wave)
-        if failures == 1 and wave:
-            checks = [ordered[0]]
+        if failures == 1 and wave:  # one round of the weakest corners not yet checked
+            checks = [action for action in ordered if memo.vertex(action) is None
+                      ][:CORNERS_AT_ONCE]
         elif wave and not vertices_checked and (level_failed or failures >= len(corners)):
             vertices_checked = True
             checks = list(ordered)

@@ -30,10 +30,11 @@ from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
     enumerated,
+    lmi_certificate,
     lmi_delay_margin,
     vertex_certificate,
 )
-from teleopkit.certification.lmi.workers import Background, start_workers
+from teleopkit.certification.lmi.workers import Background, map_solves, start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
@@ -283,7 +284,9 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
     between the two by covers (:func:`~teleopkit.certification.lmi.cover.cover_margin`, with a
     budget of :data:`MARGIN_BUDGET` solves per cover); a set that is not, whose cells near the
     limiting vertex would be tiny (more than 20 minutes on the paper's whole box), reports the
-    bounds. ``limiting`` is the limiting vertex's search if it was started earlier.
+    bounds. Without a cover, the one-functional margin is bisected below the limit, unless both
+    ends fail (:func:`_fails_at_both_ends`). ``limiting`` is the limiting vertex's search if it
+    was started earlier.
     """
     def single(h_max: float = 100.0) -> tuple[float, dict[str, Any] | None]:
         if h_max <= max(delay_lower) + MARGIN_FLOOR:
@@ -305,11 +308,27 @@ def _lmi_margin(params: TeleoperatorParams, whole: GainPolytope, kind: str, meth
         margin = found.margin
         proof = cover_proof(found.cover, (margin, margin), delay_lower)
     else:  # no cover above what is known: the one-functional margin, or the requested bounds
-        margin, proof = single(limit / (1.0 - LIMIT_RTOL))  # the limit is to LIMIT_RTOL
+        h_max = limit / (1.0 - LIMIT_RTOL)  # the limit is to LIMIT_RTOL
+        nothing = h_max <= max(delay_lower) + MARGIN_FLOOR or _fails_at_both_ends(
+            params, whole, kind, method, delay_lower, h_max)
+        margin, proof = (0.0, None) if nothing else single(h_max)
         if known >= margin:
             margin, proof = known, known_proof
     return margin, {"margin_limit": limit, "margin_limit_vertex": list(vertex),
                     "margin_proof": proof}
+
+
+def _fails_at_both_ends(params: TeleoperatorParams, whole: GainPolytope, kind: str,
+                        method: str, delay_lower: tuple[float, float], h_max: float) -> bool:
+    """Whether one functional for the whole set fails at ``h_max`` and :data:`MARGIN_FLOOR`.
+
+    The two bounds are solved side by side; if both fail, the set's margin with one functional
+    is 0 (a certificate at a bound covers every smaller one) and no bisection is needed.
+    """
+    bounds = (h_max, max(delay_lower) + MARGIN_FLOOR)
+    certs = map_solves(lmi_certificate, [(params, whole, h, h, kind, method, delay_lower)
+                                         for h in bounds], share_cores=True)
+    return not any(cert.certified for cert in certs)
 
 
 def check_lmi(certificate: GainCertificate) -> None:

@@ -19,6 +19,11 @@ after the other in one process.
 A search whose result is needed later (the limiting gain vertex's delay margin) runs beside the
 covers (:class:`Background`), on the workers they leave idle.
 
+The processes of a pool (and the caller) share the cvxpy problems they compile through a
+temporary directory that lives as long as the pool (:mod:`certify.form_store`): a cover needs
+about a dozen of them, half a second of compiling each, and every process used to compile each
+one again.
+
 A worker starts by importing the caller's main module, as every non-fork start of
 :mod:`multiprocessing` does, so a script must keep its work under
 ``if __name__ == "__main__":``. A script file without that guard would run again in each worker;
@@ -35,7 +40,9 @@ import contextvars
 import functools
 import multiprocessing
 import os
+import shutil
 import sys
+import tempfile
 import threading
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -44,6 +51,8 @@ from contextvars import ContextVar
 from typing import Any, Generic, TypeVar, cast
 
 from threadpoolctl import threadpool_limits
+
+from certify.form_store import share_forms
 
 __all__ = ["Background", "map_solves", "shutdown_workers", "start_workers",
            "threads_per_worker", "using_workers", "workers"]
@@ -57,6 +66,7 @@ class _Pool:
 
     executor: ProcessPoolExecutor | None = None
     size = 0
+    forms = ""  # the directory its processes share compiled problems through
 
 
 def _count(value: int | str, source: str) -> int:
@@ -151,9 +161,13 @@ def _is_main_test(test: ast.expr) -> bool:
     return sides in ({"__name__", "'__main__'"}, {"__name__", '"__main__"'})
 
 
-def _share_cores(threads: int) -> None:
-    """Start a worker with its share of the cores for BLAS (the solver's is passed per solve)."""
+def _start_worker(threads: int, forms: str) -> None:
+    """Start a worker: its share of the cores for BLAS, the pool's compiled problems.
+
+    The solver's share of the cores is passed with each solve.
+    """
     threadpool_limits(threads)
+    share_forms(forms)
 
 
 def _pool(count: int) -> ProcessPoolExecutor:
@@ -162,9 +176,11 @@ def _pool(count: int) -> ProcessPoolExecutor:
         shutdown_workers()
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["teleopkit.certification.lmi.systems"])
+        _Pool.forms = tempfile.mkdtemp(prefix="teleopkit-lmi-")
+        share_forms(_Pool.forms)
         _Pool.executor = ProcessPoolExecutor(count, mp_context=context,
-                                             initializer=_share_cores,
-                                             initargs=(threads_per_worker(count),))
+                                             initializer=_start_worker,
+                                             initargs=(threads_per_worker(count), _Pool.forms))
         _Pool.size = count
     return _Pool.executor
 
@@ -175,6 +191,8 @@ def shutdown_workers() -> None:
     if _Pool.executor is not None:
         _Pool.executor.shutdown(wait=True, cancel_futures=True)
         _Pool.executor, _Pool.size = None, 0
+        share_forms(None)
+        shutil.rmtree(_Pool.forms, ignore_errors=True)
 
 
 def _ready() -> None:
