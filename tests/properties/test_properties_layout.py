@@ -34,6 +34,16 @@ def test_cli_help_loads_no_heavy_dependency():
     assert done.stdout.strip().splitlines()[-1] == "[]"
 
 
+def test_the_closed_form_answer_loads_no_solver():
+    # the closed form answers at once: cvxpy alone takes over half a second to import
+    code = ("import sys\nfrom teleopkit.cli import main\ntry:\n"
+            "    main(['certify', '--kr', '5:10', '--br', '30:60', '--method', 'nuno', '--json'])\n"
+            "finally:\n"
+            f"    print(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 def _imports(path: Path) -> set[str]:
     """Modules a source file imports (at any depth of the file)."""
     found: set[str] = set()

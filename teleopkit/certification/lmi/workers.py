@@ -52,8 +52,6 @@ from typing import Any, Generic, TypeVar, cast
 
 from threadpoolctl import threadpool_limits
 
-from certify.form_store import share_forms
-
 __all__ = ["Background", "map_solves", "shutdown_workers", "start_workers",
            "threads_per_worker", "using_workers", "workers"]
 
@@ -67,6 +65,7 @@ class _Pool:
     executor: ProcessPoolExecutor | None = None
     size = 0
     forms = ""  # the directory its processes share compiled problems through
+    shared = False  # whether this process shares them too
 
 
 def _count(value: int | str, source: str) -> int:
@@ -167,7 +166,25 @@ def _start_worker(threads: int, forms: str) -> None:
     The solver's share of the cores is passed with each solve.
     """
     threadpool_limits(threads)
-    share_forms(forms)
+    _share_forms(forms)
+
+
+def _share_forms(directory: str | None) -> None:
+    """Share this process's compiled problems through ``directory`` (None: stop).
+
+    Imported on first use: :mod:`certify` imports cvxpy (over half a second), which the closed
+    form's answer does not need, and which would hold back the workers' start.
+    """
+    from certify.form_store import share_forms
+
+    share_forms(directory)
+
+
+def _share_here() -> None:
+    """Let this process use and extend the pool's compiled problems, once there is a pool."""
+    if _Pool.executor is not None and not _Pool.shared:
+        _share_forms(_Pool.forms)
+        _Pool.shared = True
 
 
 def _pool(count: int) -> ProcessPoolExecutor:
@@ -176,8 +193,7 @@ def _pool(count: int) -> ProcessPoolExecutor:
         shutdown_workers()
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["teleopkit.certification.lmi.systems"])
-        _Pool.forms = tempfile.mkdtemp(prefix="teleopkit-lmi-")
-        share_forms(_Pool.forms)
+        _Pool.forms, _Pool.shared = tempfile.mkdtemp(prefix="teleopkit-lmi-"), False
         _Pool.executor = ProcessPoolExecutor(count, mp_context=context,
                                              initializer=_start_worker,
                                              initargs=(threads_per_worker(count), _Pool.forms))
@@ -191,7 +207,9 @@ def shutdown_workers() -> None:
     if _Pool.executor is not None:
         _Pool.executor.shutdown(wait=True, cancel_futures=True)
         _Pool.executor, _Pool.size = None, 0
-        share_forms(None)
+        if _Pool.shared:
+            _share_forms(None)
+        _Pool.shared = False
         shutil.rmtree(_Pool.forms, ignore_errors=True)
 
 
@@ -216,6 +234,7 @@ def start_workers() -> None:
         pool = _pool(count)
         for _ in range(count):
             pool.submit(_ready)
+        _share_here()  # while the workers start
 
 
 def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]],
@@ -247,9 +266,11 @@ def map_solves(solve: Callable[..., _T], tasks: Sequence[tuple[Any, ...]],
     parallel = parallel and _parallel(count)
     if share_cores:
         solve = functools.partial(solve, threads=threads_per_worker(count if parallel else 1))
-    if not parallel:
+    pool = _pool(count) if parallel else None
+    _share_here()
+    if pool is None:
         return [solve(*task) for task in tasks]
-    return list(_pool(count).map(solve, *zip(*tasks, strict=True)))
+    return list(pool.map(solve, *zip(*tasks, strict=True)))
 
 
 class Background(Generic[_T]):
