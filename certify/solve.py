@@ -188,8 +188,10 @@ def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | No
             return form, data
     data = system_data(method, system, channels, mu)
     stored = (*key, data.structure())
-    form = load_form(stored)
-    if form is None or form.data_for(system) is None:
+    loaded = load_form(stored)
+    if isinstance(loaded, _Form) and loaded.data_for(system) is not None:
+        form = loaded
+    else:
         form = _Form(system, method, mu, channels, data)
         form.compile()
         save_form(stored, form)
