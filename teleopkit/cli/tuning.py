@@ -227,9 +227,10 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
                                        FlexTeleopConfig(certificate=chosen,
                                                         episode_length=duration))
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators)
-    preamble = report_preamble(comparators, scenarios, seed, delay,
-                               f"TD3 ({chosen.gain_variation})", len(policies), duration)
-    summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble)
+    tuner = f"TD3 ({chosen.gain_variation})"
+    preamble = report_preamble(comparators, scenarios, seed, delay, tuner, len(policies),
+                               duration)
+    summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner)
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")

@@ -42,6 +42,7 @@ __all__ = [
     "Rollout",
     "closed_loop",
     "evaluate",
+    "findings",
     "rollout",
     "save_report",
     "summarise",
@@ -357,8 +358,72 @@ def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = TABLE_METRICS,
     return "\n".join(lines) + "\n"
 
 
+def _paired(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[float, float, float]:
+    """Cost of ``first`` against ``second``: relative change, paired mean difference, its error.
+
+    Paired over the scenarios both ran (per-policy costs averaged per scenario); the error is
+    the standard error of the mean difference (NaN for one scenario).
+    """
+    cost = per_scenario.groupby(["controller", "scenario"], sort=False)["cost"].mean()
+    difference = (cost.loc[first] - cost.loc[second]).dropna()
+    error = difference.std(ddof=1) / np.sqrt(len(difference))
+    relative = cost.loc[first].mean() / cost.loc[second].mean() - 1
+    return float(relative), float(difference.mean()), float(error)
+
+
+def findings(per_scenario: pd.DataFrame, tuner: str, baseline: str) -> str:
+    """What the table says of the tuner, in words: against the strongest covered alternative.
+
+    The rows covered by their certificate are ranked by mean cost. The tuner is compared with
+    the cheapest other covered row, paired scenario by scenario: a mean difference within twice
+    its standard error is reported as no measurable difference. Cheaper rows that their
+    certificate does not cover are named as such.
+
+    Parameters
+    ----------
+    per_scenario : pandas.DataFrame
+        Output of :func:`evaluate`, with the rows ``tuner`` and ``baseline``.
+    tuner : str
+        The tuner's row.
+    baseline : str
+        The row costs are compared with in percent.
+
+    Returns
+    -------
+    str
+        A markdown paragraph.
+    """
+    summary = summarise(per_scenario, ("cost",))
+    covered = summary[summary["covered"]].sort_values("cost")
+    change = summary["cost"] / summary.loc[baseline, "cost"] - 1
+    best = str(covered.index[0]) if len(covered) else ""
+    lines = [f"Of the rows covered by their certificate, `{best}` costs least "
+             f"({100 * change[best]:+.1f} % against `{baseline}`)." if best else
+             "No row is covered by its certificate."]
+    rivals = [name for name in covered.index if name != tuner]
+    if summary.loc[tuner, "covered"] and rivals:
+        rival = str(rivals[0])
+        relative, mean, error = _paired(per_scenario, tuner, rival)
+        verdict = ("no measurable difference on these scenarios" if abs(mean) <= 2 * error
+                   else "cheaper" if mean < 0 else "dearer")
+        lines.append(f"`{tuner}` against the strongest other covered row, `{rival}`: "
+                     f"{100 * relative:+.1f} % cost (paired over the scenarios: {mean:+.4g} "
+                     f"± {error:.2g} per scenario, mean ± standard error), {verdict}.")
+    elif not summary.loc[tuner, "covered"]:
+        lines.append(f"`{tuner}` is not covered by its certificate.")
+    cheaper = [str(name) for name in summary.index
+               if not summary.loc[name, "covered"] and summary.loc[name, "cost"]
+               < summary.loc[tuner, "cost"]]
+    if cheaper:
+        lines.append("Cheaper but not covered by their certificate: "
+                     + ", ".join(f"`{name}` ({100 * change[name]:+.1f} %)" for name in cheaper)
+                     + ".")
+    return " ".join(lines) + "\n"
+
+
 def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
-                baseline: str | None = None, preamble: str = "") -> pd.DataFrame:
+                baseline: str | None = None, preamble: str = "",
+                tuner: str | None = None) -> pd.DataFrame:
     """Write ``per_scenario.csv``, ``summary.csv`` and ``summary.md`` to ``out_dir``.
 
     Parameters
@@ -371,6 +436,8 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
         Controller the markdown table compares costs with.
     preamble : str
         Markdown that ``summary.md`` opens with (what was compared, what the words mean).
+    tuner : str, optional
+        The tuner's row: ``summary.md`` then ends with :func:`findings` (needs ``baseline``).
 
     Returns
     -------
@@ -383,5 +450,7 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
     per_scenario.to_csv(directory / "per_scenario.csv", index=False)
     summary.to_csv(directory / "summary.csv")
     table = to_markdown(summary, baseline=baseline)
+    if tuner is not None and baseline is not None:
+        table += "\n" + findings(per_scenario, tuner, baseline)
     (directory / "summary.md").write_text(f"{preamble}\n{table}" if preamble else table)
     return summary

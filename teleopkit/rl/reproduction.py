@@ -85,7 +85,8 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED) -> Re
         PAPER_TUNER: "the paper's tuner (teleopkit/data/td3_policy.npz), trained under the "
                      "frozen class, whose certificate covers constant gains only: it switches "
                      "them every few steps, so its row is not covered (the paper's claim)."})
-    summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble)
+    summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble,
+                          tuner=tuner)
     runs = {tuner: rollout(covered, 1, seed, config).to_frame(),
             PAPER_TUNER: rollout(paper, 1, seed).to_frame(),
             REFERENCE: rollout(ConstantGains(comparators.frozen_static), 1, seed).to_frame()}

@@ -11,7 +11,7 @@ from teleopkit.rl.baselines import FIXED_GAINS, best_static_gains, fixed_gains, 
 from teleopkit.rl.comparison import policy_certificate
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import evaluate, rollout, save_report
+from teleopkit.rl.evaluation import SUMMARY_METRICS, evaluate, findings, rollout, save_report
 from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
 from teleopkit.sim.scenarios import paper_scenarios
 
@@ -133,3 +133,38 @@ def test_shipped_covered_policy_runs_covered_in_its_class():
     table = run.metrics()
     assert run.unsafe_actions == 0 and table["covered"].all()
     assert (table["certificate"] == variation).all()
+
+
+def _table(costs: dict[str, tuple[list[float], bool]]) -> pd.DataFrame:
+    """A per-scenario table of given costs (one policy each) and coverage."""
+    return pd.DataFrame([{"controller": name, "policy": 0, "scenario": k,
+                          **dict.fromkeys(SUMMARY_METRICS, cost), "covered": covered,
+                          "certificate": "tank:3", "unsafe_actions": 0}
+                         for name, (values, covered) in costs.items()
+                         for k, cost in enumerate(values)])
+
+
+def test_findings_compare_the_tuner_with_the_strongest_covered_row():
+    rng = np.random.default_rng(3)
+    base = rng.uniform(8000, 12000, 32)
+    per = _table({"TD3": (list(base - 500 + rng.normal(0, 50, 32)), True),
+                  "best static": (list(base), True),
+                  "open-loop": (list(base - 480 + rng.normal(0, 50, 32)), True),
+                  "paper": (list(base - 2000), False)})
+    text = findings(per, "TD3", "best static")
+    assert "`TD3` costs least" in text or "`open-loop` costs least" in text
+    assert "strongest other covered row, `open-loop`" in text
+    assert "no measurable difference" in text  # 20 apart, with 50 of noise per scenario
+    assert "not covered by their certificate: `paper`" in text
+    per = _table({"TD3": (list(base - 500), True), "best static": (list(base), True)})
+    text = findings(per, "TD3", "best static")
+    assert "`TD3` costs least (-" in text and "`best static`: -" in text and "cheaper" in text
+
+
+def test_findings_say_when_the_tuner_is_not_covered(tmp_path):
+    per = _table({"TD3": ([1.0, 2.0], False), "fixed": ([2.0, 3.0], True)})
+    save_report(per, tmp_path, baseline="fixed", tuner="TD3")
+    text = (tmp_path / "summary.md").read_text()
+    assert "`fixed` costs least (+0.0 % against `fixed`)" in text
+    assert "`TD3` is not covered by its certificate" in text
+    assert "Cheaper but not covered" not in text  # only the tuner is cheaper, named above
