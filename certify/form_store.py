@@ -77,12 +77,12 @@ def load_form(key: tuple[Any, ...]) -> Any | None:
         The unpickled problem, or ``None`` (no directory, nothing saved yet, or unreadable).
     """
     path = _file(key)
-    if path is None or not path.exists():
+    if path is None:
         return None
     try:
         with path.open("rb") as stream:
             return pickle.load(stream)
-    except (OSError, EOFError, pickle.UnpicklingError):
+    except (OSError, EOFError, pickle.UnpicklingError):  # OSError: none saved yet
         return None
 
 

@@ -371,7 +371,8 @@ def _paired(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[float,
     return float(relative), float(difference.mean()), float(error)
 
 
-def findings(per_scenario: pd.DataFrame, tuner: str, baseline: str) -> str:
+def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
+             baseline: str) -> str:
     """What the table says of the tuner, in words: against the strongest covered alternative.
 
     The rows covered by their certificate are ranked by mean cost. The tuner is compared with
@@ -381,6 +382,8 @@ def findings(per_scenario: pd.DataFrame, tuner: str, baseline: str) -> str:
 
     Parameters
     ----------
+    summary : pandas.DataFrame
+        :func:`summarise` of ``per_scenario``.
     per_scenario : pandas.DataFrame
         Output of :func:`evaluate`, with the rows ``tuner`` and ``baseline``.
     tuner : str
@@ -393,7 +396,6 @@ def findings(per_scenario: pd.DataFrame, tuner: str, baseline: str) -> str:
     str
         A markdown paragraph.
     """
-    summary = summarise(per_scenario, ("cost",))
     covered = summary[summary["covered"]].sort_values("cost")
     change = summary["cost"] / summary.loc[baseline, "cost"] - 1
     best = str(covered.index[0]) if len(covered) else ""
@@ -451,6 +453,6 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
     summary.to_csv(directory / "summary.csv")
     table = to_markdown(summary, baseline=baseline)
     if tuner is not None and baseline is not None:
-        table += "\n" + findings(per_scenario, tuner, baseline)
+        table += "\n" + findings(summary, per_scenario, tuner, baseline)
     (directory / "summary.md").write_text(f"{preamble}\n{table}" if preamble else table)
     return summary

@@ -21,12 +21,18 @@ print("ran", os.getpid(), flush=True)
 """
 
 
-def _run(tmp_path, guard: str) -> subprocess.CompletedProcess:
+def _run_script(tmp_path, source: str, workers: str = "2",
+                *flags: str) -> subprocess.CompletedProcess:
+    """Run ``source`` as a script file, with ``TELEOPKIT_WORKERS=workers``."""
     path = tmp_path / "script.py"
-    path.write_text(textwrap.dedent(SCRIPT.format(guard=guard)))
-    return subprocess.run([sys.executable, "-W", "always", str(path)], capture_output=True,
-                          text=True, timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"},
+    path.write_text(textwrap.dedent(source))
+    return subprocess.run([sys.executable, *flags, str(path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": workers},
                           check=False)
+
+
+def _run(tmp_path, guard: str) -> subprocess.CompletedProcess:
+    return _run_script(tmp_path, SCRIPT.format(guard=guard), "2", "-W", "always")
 
 
 def test_results_come_back_in_task_order():
@@ -64,10 +70,7 @@ if __name__ == "__main__":
 def test_each_worker_gets_its_share_of_the_cores_for_blas(tmp_path):
     # two workers each running BLAS and Clarabel on every core solved a level of cells no
     # faster than one process
-    path = tmp_path / "threads.py"
-    path.write_text(THREADS_SCRIPT)
-    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    done = _run_script(tmp_path, THREADS_SCRIPT, "2")
     assert done.returncode == 0, done.stderr
     share = (os.cpu_count() or 1) // 2
     for blas, solver in ast.literal_eval(done.stdout):
@@ -94,11 +97,7 @@ if __name__ == "__main__":
 
 @pytest.mark.parametrize(("count", "started"), [("2", "[2]"), ("1", "[]")])
 def test_workers_start_before_the_first_solves(tmp_path, count, started):
-    path = tmp_path / "starter.py"
-    path.write_text(textwrap.dedent(STARTER))
-    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": count},
-                          check=False)
+    done = _run_script(tmp_path, STARTER, count)
     assert done.returncode == 0, done.stderr
     assert f"started {started}" in done.stdout and "[8, 9]" in done.stdout
 
@@ -127,10 +126,7 @@ if __name__ == "__main__":
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
 def test_one_pool_is_kept_and_replaced_when_its_size_changes(tmp_path):
-    path = tmp_path / "pool.py"
-    path.write_text(ONE_POOL)
-    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    done = _run_script(tmp_path, ONE_POOL, "2")
     assert done.returncode == 0, done.stderr
     assert "[8, 9]" in done.stdout and "[2, 4, 8]" in done.stdout
     assert "replaced True True" in done.stdout
@@ -154,10 +150,7 @@ if __name__ == "__main__":
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
 def test_the_pool_shares_compiled_problems_through_one_directory_it_removes(tmp_path):
-    path = tmp_path / "forms.py"
-    path.write_text(SHARED_FORMS_SCRIPT)
-    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "2"}, check=False)
+    done = _run_script(tmp_path, SHARED_FORMS_SCRIPT, "2")
     assert done.returncode == 0, done.stderr
     during, after = done.stdout.splitlines()
     assert ast.literal_eval(during) == [(True, True)] * 4  # the workers' directory is the main's
@@ -203,10 +196,7 @@ if __name__ == "__main__":
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no workers")
 def test_a_background_search_runs_on_a_thread_in_the_callers_context(tmp_path):
-    path = tmp_path / "beside.py"
-    path.write_text(BESIDE)
-    done = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "TELEOPKIT_WORKERS": "3"}, check=False)
+    done = _run_script(tmp_path, BESIDE, "3")
     assert done.returncode == 0, done.stderr
     assert "caller [2, 4]" in done.stdout
     # its own thread, the caller's worker count (not the environment's), the shared pool

@@ -11,7 +11,14 @@ from teleopkit.rl.baselines import FIXED_GAINS, best_static_gains, fixed_gains, 
 from teleopkit.rl.comparison import policy_certificate
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import SUMMARY_METRICS, evaluate, findings, rollout, save_report
+from teleopkit.rl.evaluation import (
+    SUMMARY_METRICS,
+    evaluate,
+    findings,
+    rollout,
+    save_report,
+    summarise,
+)
 from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
 from teleopkit.sim.scenarios import paper_scenarios
 
@@ -151,13 +158,13 @@ def test_findings_compare_the_tuner_with_the_strongest_covered_row():
                   "best static": (list(base), True),
                   "open-loop": (list(base - 480 + rng.normal(0, 50, 32)), True),
                   "paper": (list(base - 2000), False)})
-    text = findings(per, "TD3", "best static")
+    text = findings(summarise(per), per, "TD3", "best static")
     assert "`TD3` costs least" in text or "`open-loop` costs least" in text
     assert "strongest other covered row, `open-loop`" in text
     assert "no measurable difference" in text  # 20 apart, with 50 of noise per scenario
     assert "not covered by their certificate: `paper`" in text
     per = _table({"TD3": (list(base - 500), True), "best static": (list(base), True)})
-    text = findings(per, "TD3", "best static")
+    text = findings(summarise(per), per, "TD3", "best static")
     assert "`TD3` costs least (-" in text and "`best static`: -" in text and "cheaper" in text
 
 

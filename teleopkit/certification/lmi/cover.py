@@ -250,9 +250,10 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                   and memo.vertex(ordered[0]) is None else [])
         if solves + len(unchecked) + len(fresh) + len(beside) > budget:
             return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
-        if memo.failed_vertex(polytope) is None:  # (one checked beside the last level may fail)
+        failed = memo.failed_vertex(polytope)  # (one checked beside the last level may fail)
+        if failed is None:
             solves += _check_alone(params, unchecked, memo)
-        failed = memo.failed_vertex(polytope)
+            failed = memo.failed_vertex(polytope)
         if failed is not None:
             return partial(f"the gain vertex {failed[0].tolist()} is not certified alone",
                            (failed[1],))
