@@ -189,8 +189,9 @@ def _shared_form(system: PolytopicDelaySystem, method: LMIMethod, mu: float | No
     data = system_data(method, system, channels, mu)
     stored = (*key, data.structure())
     loaded = load_form(stored)
-    if isinstance(loaded, _Form) and loaded.data_for(system) is not None:
-        form = loaded
+    shared = loaded.data_for(system) if isinstance(loaded, _Form) else None
+    if isinstance(loaded, _Form) and shared is not None:
+        form, data = loaded, shared  # its numbers in its own channels, which may differ
     else:
         form = _Form(system, method, mu, channels, data)
         form.compile()
