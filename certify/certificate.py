@@ -15,6 +15,7 @@ from certify.check import RTOL, residuals, variables_valid
 from certify.conditions import lower_bounds
 from certify.methods import get_method
 from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.system_data import system_data
 from certify.uncertainty import AffineUncertainty
 
 __all__ = ["Certificate"]
@@ -55,6 +56,9 @@ class Certificate:
         ``channels`` refer to (:meth:`PolytopicDelaySystem.scaled`); empty means ``d = 1``.
     delay_lower : tuple of float
         Lower bound ``l_i`` of each delay (``l_i <= tau_i(t) <= h_i``); empty means 0.
+    eliminated : tuple of int
+        Rows of the descriptor relation whose kernel the conditions are posed on instead of
+        multiplying them by the slack (:func:`certify.system_data.eliminable_rows`); empty: none.
     """
 
     certified: bool
@@ -71,6 +75,7 @@ class Certificate:
     margin: float | None = None
     scaling: tuple[float, ...] = ()
     delay_lower: tuple[float, ...] = ()
+    eliminated: tuple[int, ...] = ()
 
     def verify(self, rtol: float = RTOL) -> bool:
         """Re-check every LMI in numpy from the stored matrices and system.
@@ -95,16 +100,15 @@ class Certificate:
                     return False
                 method = method.with_lower(lower)
             system = self.system.scaled(self.scaling) if self.scaling else self.system
+            ch = Channels(system.n, tuple(self.channels))
+            if len(self.delay_bounds) != system.m or not ch.valid_for(system):
+                return False
+            data = system_data(method, system, ch, self.mu, self.eliminated)
         except ValueError:
             return False
-        ch = Channels(system.n, tuple(self.channels))
-        if (
-            len(self.delay_bounds) != system.m
-            or not ch.valid_for(system)
-            or not variables_valid(method, system, ch, self.mu, self.matrices)
-        ):
+        if not variables_valid(method, system, ch, self.mu, self.matrices, data):
             return False
-        res = residuals(method, system, ch, self.matrices, self.delay_bounds, self.mu)
+        res = residuals(method, system, ch, self.matrices, self.delay_bounds, self.mu, data)
         return all(r >= rtol for r in res.values())
 
     def to_dict(self) -> dict[str, Any]:
@@ -133,6 +137,7 @@ class Certificate:
             "margin": self.margin,
             "scaling": list(self.scaling),
             "delay_lower": list(self.delay_lower),
+            "eliminated": list(self.eliminated),
         }
 
     def to_json(self, indent: int | None = None) -> str:
@@ -186,6 +191,7 @@ class Certificate:
             margin=None if data["margin"] is None else float(data["margin"]),
             scaling=tuple(float(x) for x in data.get("scaling", ())),
             delay_lower=tuple(float(x) for x in data.get("delay_lower", ())),
+            eliminated=tuple(int(x) for x in data.get("eliminated", ())),
         )
 
     @classmethod

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from certify.channels import Channels
 from certify.conditions import LMIMethod
 from certify.system import PolytopicDelaySystem
+from certify.system_data import SystemData
 
 __all__ = ["RTOL", "relative_margin", "residuals", "variables_valid"]
 
@@ -44,6 +45,7 @@ def variables_valid(
     ch: Channels,
     mu: float | None,
     matrices: Mapping[str, NDArray[np.float64]],
+    data: SystemData | None = None,
 ) -> bool:
     """Check that ``matrices`` holds every decision matrix with its shape and symmetry.
 
@@ -59,6 +61,9 @@ def variables_valid(
         Delay-derivative bound.
     matrices : Mapping[str, numpy.ndarray]
         Stored decision matrices.
+    data : SystemData, optional
+        The system's numbers the matrices were solved for (they fix the slacks' shape);
+        :func:`certify.system_data.system_data` by default.
 
     Returns
     -------
@@ -66,7 +71,7 @@ def variables_valid(
         ``True`` when exactly the expected matrices are present, finite, of the right shape,
         and symmetric where required.
     """
-    specs = method.variables(ch, mu, system)
+    specs = method.variables(ch, mu, system, data)
     if set(matrices) != {spec.name for spec in specs}:
         return False
     for spec in specs:
@@ -85,6 +90,7 @@ def residuals(
     matrices: Mapping[str, NDArray[np.float64]],
     h: Sequence[float],
     mu: float | None,
+    data: SystemData | None = None,
 ) -> dict[str, float]:
     """Relative eigenvalue margins of every condition, recomputed in numpy.
 
@@ -102,6 +108,8 @@ def residuals(
         Delay bounds.
     mu : float or None
         Delay-derivative bound.
+    data : SystemData, optional
+        The system's numbers, as in :func:`variables_valid`.
 
     Returns
     -------
@@ -109,5 +117,5 @@ def residuals(
         Condition name -> :func:`relative_margin` of its matrix (positive means satisfied).
     """
     h2 = [float(x) ** 2 for x in h]
-    conds = method.conditions(system, ch, matrices, [float(x) for x in h], h2, mu)
+    conds = method.conditions(system, ch, matrices, [float(x) for x in h], h2, mu, data)
     return {c.name: relative_margin(np.asarray(c.matrix, dtype=np.float64)) for c in conds}

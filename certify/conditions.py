@@ -8,7 +8,9 @@ delayed states) that satisfies the descriptor relation ``Gamma xi = 0``, i.e.
 "``Phi < 0`` on the kernel of ``Gamma``" into ``Phi + N Gamma + Gamma^T N^T < 0``, which is
 affine in ``(E, A0, A_i)``: one common functional and one common slack checked at every vertex
 of a polytopic system certify the whole polytope, even for arbitrarily fast variation inside
-it.
+it. Rows of the relation that every vertex shares and that fix one derivative
+(``q' = v``, :func:`~certify.system_data.eliminable_rows`) are not multiplied by the slack:
+the conditions are posed on their kernel ``xi = Z zeta``, an equivalent and smaller form.
 
 Where ``Phi`` depends on the current delay value (augmented functionals), it is
 convex in the delays and is checked at the vertices of the delay box; the slack may
@@ -340,7 +342,8 @@ class LMIMethod(ABC):
         """
 
     def variables(
-        self, ch: Channels, mu: float | None, system: PolytopicDelaySystem
+        self, ch: Channels, mu: float | None, system: PolytopicDelaySystem,
+        data: SystemData | None = None,
     ) -> list[VariableSpec]:
         """All decision matrices: the functional's, the Finsler slacks and the multipliers.
 
@@ -356,15 +359,20 @@ class LMIMethod(ABC):
             ``(MQ, MS, MR)`` per derivative condition (named ``"MQ<point>@<vertex>"``), and
             each of its rate-bounded parameters a storage direction ``dP<k>`` per copy (with a
             rate bound ``Z<k>`` for a positive rate).
+        data : SystemData, optional
+            The system's numbers (:func:`certify.system_data.system_data` by default), which
+            fix the shape of the slacks: one row per component of the reduced vector
+            ``zeta``, one column per relation row kept.
 
         Returns
         -------
         list of VariableSpec
             Variable shapes.
         """
-        size = sum(self.blocks(ch, mu).values())
+        data = system_data(self, system, ch, mu) if data is None else data
         points = range(len(self.delay_points(ch.m, mu)))
-        slacks = [VariableSpec(f"N{j}", (size, ch.n), symmetric=False) for j in points]
+        slacks = [VariableSpec(f"N{j}", data.slack_shape, symmetric=False) for j in points
+                  if data.slack_shape[1]]  # none when every row of the relation is eliminated
         copies = _copies(system)
         own = self.functional_variables(ch, mu) + [
             VariableSpec(name, (ch.n, ch.n), True) for name in _storage_names(system)]
@@ -451,20 +459,23 @@ class LMIMethod(ABC):
             for mats in own:
                 phi = self.derivative(mats, ch, h, h2, point, mu)
                 storage.add_rate_term(phi, mats)
-                phis.append(phi.assemble())
-            slack = var[f"N{j}"]
+                phis.append(_on_kernel(phi.assemble(), data.kernel))
+            slack = var.get(f"N{j}")
             tag = "".join("h" if p else "0" for p in point)
             for k, relation in enumerate(data.relations):
-                finsler = slack @ relation
                 mats = own[k if copies > 1 else 0]
-                m0 = phis[k if copies > 1 else 0] + finsler + finsler.T
+                m0 = phis[k if copies > 1 else 0]
+                if slack is not None:
+                    finsler = slack @ relation
+                    m0 = m0 + finsler + finsler.T
                 label = f"derivative[vertex={k},tau={tag}]"
                 if data.right.shape[1] + storage.width == 0:
                     out.append(MatrixInequality(label, -m0))
                     continue
                 multiplier = [var[f"{name}{j}@{k}"] for name in ("MQ", "MS", "MR")]
                 u = slack @ data.left if data.right.shape[1] else None
-                u, right, deltas = storage.extend(u, data.right, data.deltas, mats)
+                u, right, deltas = storage.extend(u, data.right, data.deltas, mats,
+                                                  data.kernel)
                 outers = None if storage.scheduled else data.outers  # else computed from deltas
                 out += robust_conditions(label, m0, u, right, multiplier, deltas, outers)
         return out
@@ -527,11 +538,13 @@ class _Storage:
             if rate > 0:
                 phi.add_quad({"x": 1.0}, rate * mats[f"Z{k}"])
 
-    def extend(self, u: Any, v: np.ndarray, deltas: np.ndarray,
-               mats: Mapping[str, Any]) -> tuple[Any, np.ndarray, np.ndarray]:
+    def extend(self, u: Any, v: np.ndarray, deltas: np.ndarray, mats: Mapping[str, Any],
+               kernel: np.ndarray | None) -> tuple[Any, np.ndarray, np.ndarray]:
         """Append the storage term ``He(U_P Delta_P V_P^T)`` to the factors of ``Delta``.
 
-        ``u`` is ``None`` when no parameter changes the dynamics (``v`` has no column).
+        ``u`` is ``None`` when no parameter changes the dynamics (``v`` has no column); ``u``
+        and ``v`` are on the kernel of the eliminated relation rows (``kernel``), and so are
+        the storage's factors once appended.
         """
         if not self.scheduled:
             return u, v, deltas
@@ -541,9 +554,16 @@ class _Storage:
         v_p = np.zeros((self.size, self.width))
         for k in range(q):
             v_p[self.n:2 * self.n, k * self.n:(k + 1) * self.n] = np.eye(self.n)
+        if kernel is not None:
+            u_p, v_p = kernel.T @ u_p, kernel.T @ v_p
         columns = np.repeat(self.deviations, self.n, axis=1)
         return (u_p if u is None else bmat([[u, u_p]]), np.hstack([v, v_p]),
                 np.hstack([deltas, columns]))
+
+
+def _on_kernel(phi: Any, kernel: np.ndarray | None) -> Any:
+    """``Z^T Phi Z``: the quadratic form on ``xi = Z zeta`` (``Phi`` itself without a kernel)."""
+    return phi if kernel is None else kernel.T @ phi @ kernel
 
 
 def _copies(system: PolytopicDelaySystem) -> int:

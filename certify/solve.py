@@ -104,7 +104,7 @@ class _Form:
         self.data = data.parameters() if shared else data
         self.vars = {
             s.name: cp.Variable(s.shape, symmetric=s.symmetric, name=s.name)
-            for s in method.variables(channels, mu, system)
+            for s in method.variables(channels, mu, system, data)
         }
         self.h = [cp.Parameter(nonneg=True, name=f"h{i}") for i in range(system.m)]
         self.h2 = [cp.Parameter(nonneg=True, name=f"h{i}_sq") for i in range(system.m)]
@@ -148,7 +148,7 @@ class _Form:
             return status, {}, {}
         matrices = {k: _value(v) for k, v in self.vars.items()}
         return status, matrices, residuals(self.method, system, self.channels, matrices,
-                                           bounds, self.mu)
+                                           bounds, self.mu, data)
 
 
 RETRIES = ("always", "accurate")
@@ -364,4 +364,5 @@ class LMIProblem:
             matrices=matrices if certified else {},
             channels=form.form.channels.C,
             residuals=res,
+            eliminated=form.data.eliminated,
         )

@@ -14,7 +14,7 @@ not allow for parameters).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +30,7 @@ from certify.uncertainty import factor
 if TYPE_CHECKING:
     from certify.conditions import LMIMethod
 
-__all__ = ["SystemData", "dynamics_scale", "system_data"]
+__all__ = ["SystemData", "dynamics_scale", "eliminable_rows", "relation_kernel", "system_data"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +53,13 @@ class SystemData:
         The diagonal of ``Delta`` at each point of the parameter set, shape ``(d, r)``.
     outers : tuple
         Per point, ``delta delta^T`` (shape ``(r, r)``, separate so that problems stay DPP).
+    eliminated : tuple of int
+        Rows of the relation eliminated (:func:`eliminable_rows`): the conditions are posed on
+        their kernel, ``xi = Z zeta``, and ``relations``, ``left`` and ``right`` hold the other
+        rows on ``zeta`` (``Gamma Z``, ``G``, ``Z^T H``).
+    kernel : numpy.ndarray or None
+        The basis ``Z`` (shape ``(size, size - len(eliminated))``, :func:`relation_kernel`), a
+        constant of the problem; ``None`` when no row is eliminated.
     slots : tuple, optional
         For parameters (:meth:`parameters`): the parameter of each relation and of ``left``,
         with the flattened entries it holds; the other entries are structural zeros.
@@ -64,8 +71,15 @@ class SystemData:
     owner: np.ndarray
     deltas: Any
     outers: tuple[Any, ...]
-
+    eliminated: tuple[int, ...] = ()
+    kernel: np.ndarray | None = None
     slots: tuple[tuple[Any, np.ndarray], ...] = ()
+
+    @property
+    def slack_shape(self) -> tuple[int, int]:
+        """Shape of the Finsler slack that multiplies these relations: ``(k, rows)``."""
+        rows, size = self.relations[0].shape
+        return size, rows
 
     def structure(self) -> tuple[Any, ...]:
         """What two systems must share for one problem to serve both.
@@ -75,8 +89,10 @@ class SystemData:
         tuple
             The shapes and nonzero patterns of the data and the constant right factors.
         """
+        kernel = b"" if self.kernel is None else (self.kernel.shape, self.kernel.tobytes())
         return (tuple((r.shape, np.flatnonzero(r).tobytes()) for r in self._sparse()),
-                self.right.tobytes(), self.owner.tobytes(), self.deltas.shape)
+                self.right.tobytes(), self.owner.tobytes(), self.deltas.shape, self.eliminated,
+                kernel)
 
     def _sparse(self) -> tuple[Any, ...]:
         return (*self.relations, self.left)
@@ -107,7 +123,8 @@ class SystemData:
             tuple(sparse[:-1]), sparse[-1], self.right, self.owner,
             cp.Parameter(self.deltas.shape, name="delta"),
             tuple(cp.Parameter(o.shape, symmetric=True, name=f"outer{j}")
-                  for j, o in enumerate(self.outers)), tuple(slots))
+                  for j, o in enumerate(self.outers)), self.eliminated, self.kernel,
+            tuple(slots))
         params.assign(self)
         return params
 
@@ -149,7 +166,7 @@ def dynamics_scale(system: PolytopicDelaySystem) -> float:
 
 
 def system_data(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
-                mu: float | None) -> SystemData:
+                mu: float | None, eliminated: Sequence[int] | None = None) -> SystemData:
     """The numbers of ``system`` that the LMIs of ``method`` depend on.
 
     Parameters
@@ -162,11 +179,19 @@ def system_data(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
         Delay channels.
     mu : float or None
         Delay-derivative bound.
+    eliminated : sequence of int, optional
+        Rows of the relation to eliminate (a certificate's record); by default every row
+        :func:`eliminable_rows` finds.
 
     Returns
     -------
     SystemData
         Numpy arrays.
+
+    Raises
+    ------
+    ValueError
+        If a row of ``eliminated`` cannot be eliminated for this system.
     """
     sizes = method.blocks(ch, mu)
     unit = 1.0 / dynamics_scale(system)
@@ -178,8 +203,114 @@ def system_data(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
         np.zeros((ch.n, 0)), np.zeros((size, 0)), np.zeros(0, dtype=int))
     unc = system.uncertainty
     deltas = np.zeros((0, 0)) if unc is None else unc.deviations()[:, owner]
+    rows = eliminable_rows(relations, left, ch.n) if eliminated is None else tuple(eliminated)
+    kernel = relation_kernel(relations, left, ch.n, rows)
+    if kernel is not None:
+        kept = np.setdiff1d(np.arange(ch.n), rows)
+        relations = tuple(r[kept] @ kernel for r in relations)
+        left, right = left[kept], kernel.T @ right
     return SystemData(relations, unit * left, right, owner, deltas,
-                      tuple(np.outer(d, d) for d in deltas))
+                      tuple(np.outer(d, d) for d in deltas), rows, kernel)
+
+
+def _pivot(relations: Sequence[np.ndarray], left: np.ndarray, n: int, row: int) -> int | None:
+    """The ``dx`` column row ``row`` fixes, if the row can be eliminated (else None).
+
+    It can if it reads ``dx_a = c x_b`` (one entry on ``dx``, one on ``x``, none elsewhere),
+    every vertex shares it and no parameter changes it.
+    """
+    first = relations[0][row]
+    on_dx, on_x = np.flatnonzero(first[n:2 * n]), np.flatnonzero(first[:n])
+    if (on_dx.size != 1 or on_x.size != 1 or np.count_nonzero(first) != 2
+            or np.any(left[row] != 0)
+            or not all(np.array_equal(r[row], first) for r in relations)):
+        return None
+    return n + int(on_dx[0])
+
+
+def eliminable_rows(relations: Sequence[np.ndarray], left: np.ndarray, n: int
+                    ) -> tuple[int, ...]:
+    """Kinematic rows of the descriptor relation: ``dx_a = c x_b``, the same at every vertex.
+
+    A row that every vertex shares and no parameter changes, with one entry on the derivative
+    block ``dx`` (columns ``n`` to ``2n``) and one on the state ``x``, fixes that derivative:
+    a kinematic row ``q' = v`` of a mechanical system. Its kernel is structural (``c`` is 1,
+    or a ratio of state scales), so systems of one structure still share one problem; rows
+    that mix several states (``x' = A0 x + ...`` of a general system) are left to the slack.
+    Posing the conditions on the kernel of such rows
+    (:func:`relation_kernel`) is equivalent to multiplying them by the Finsler slack: a
+    feasible slack restricts to the kernel, and a kernel solution extends to a slack by adding
+    ``-s Gamma_c^T`` on these rows for a large enough ``s``, at every vertex at once. It
+    removes one dimension from every derivative condition per row, along which only a large
+    slack makes the condition negative and the solver reaches small margins only.
+
+    Parameters
+    ----------
+    relations : sequence of numpy.ndarray
+        Per vertex, the relation ``Gamma`` (shape ``(n, size)``).
+    left : numpy.ndarray
+        Left rank factors of the uncertainty's part (shape ``(n, r)``).
+    n : int
+        State dimension.
+
+    Returns
+    -------
+    tuple of int
+        The rows, in order; a row whose derivative an earlier row fixes is left out.
+    """
+    rows: list[int] = []
+    columns: set[int] = set()
+    for row in range(n):
+        column = _pivot(relations, left, n, row)
+        if column is not None and column not in columns:
+            rows.append(row)
+            columns.add(column)
+    return tuple(rows)
+
+
+def relation_kernel(relations: Sequence[np.ndarray], left: np.ndarray, n: int,
+                    rows: Sequence[int]) -> np.ndarray | None:
+    """A basis ``Z`` of the vectors ``xi`` that satisfy the relation's ``rows``.
+
+    Each row fixes its derivative entry (:func:`eliminable_rows`): ``Z`` is the identity on the
+    other entries, and the row solved for its derivative on that one.
+
+    Parameters
+    ----------
+    relations : sequence of numpy.ndarray
+        Per vertex, the relation ``Gamma`` (shape ``(n, size)``).
+    left : numpy.ndarray
+        Left rank factors of the uncertainty's part (shape ``(n, r)``).
+    n : int
+        State dimension.
+    rows : sequence of int
+        The rows (empty: no kernel).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        ``Z``, shape ``(size, size - len(rows))``; ``None`` for no row.
+
+    Raises
+    ------
+    ValueError
+        If a row cannot be eliminated (out of range, repeated, not shared by every vertex,
+        changed by a parameter, not on exactly one derivative, or on one an earlier row fixes).
+    """
+    if not rows:
+        return None
+    found = [_pivot(relations, left, n, row) if 0 <= row < n else None for row in rows]
+    pivots = [p for p in found if p is not None]
+    if len(set(pivots)) != len(rows) or len(set(rows)) != len(rows):
+        raise ValueError(f"rows {list(rows)} of the descriptor relation cannot be eliminated "
+                         "for this system")
+    first = relations[0]
+    kept = np.setdiff1d(np.arange(first.shape[1]), pivots)
+    kernel = np.zeros((first.shape[1], kept.size))
+    kernel[kept, np.arange(kept.size)] = 1.0
+    for row, column in zip(rows, pivots, strict=True):
+        kernel[column] = -first[row, kept] / first[row, column]
+    return kernel
 
 
 def parameter_factors(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,

@@ -49,7 +49,7 @@ def test_well_scaled_certificates_carry_no_scaling(benchmark_system):
 
 def test_retry_accurate_skips_balancing_after_an_inaccurate_solve(badly_scaled):
     raw_status = LMIProblem(badly_scaled, get_method("rcc"), None)._forms[0].solve((1.0,))[0]
-    assert raw_status == "optimal_inaccurate"  # the case the rule is about
+    assert raw_status != "optimal"  # the case the rule is about: not solved accurately
     assert certify_delay(badly_scaled, 1.0, "rcc", retry="always").certified
     assert not certify_delay(badly_scaled, 1.0, "rcc", retry="accurate").certified
 

@@ -49,7 +49,9 @@ def test_reduced_problem_is_smaller_and_dpp(rank_one):
     problem = LMIProblem(PolytopicDelaySystem((rank_one,)), METHODS["rcc"], None)
     assert problem.problem.is_dcp(dpp=True)
     sizes = [c.args[0].shape[0] for c in problem.problem.constraints if c.args[0].ndim == 2]
-    assert max(sizes) == 2 * 3 + 2 * 1  # x, dx and two 1-dimensional delayed signals
+    # x, dx and two 1-dimensional delayed signals, less the kinematic row x1' = x2
+    assert max(sizes) == 2 * 3 + 2 * 1 - 1
+    assert max_delay_certificate(rank_one, "rcc").eliminated == (0,)
 
 
 def test_certificate_channels_round_trip_and_tamper(rank_one):

@@ -95,7 +95,7 @@ def _lmi_data(cert: Certificate) -> dict[str, Any]:
     """What re-checks an LMI solution once its system is rebuilt."""
     data = cert.to_dict()
     return {key: data[key] for key in ("method", "delay_bounds", "delay_lower", "mu",
-                                       "matrices", "channels", "scaling")}
+                                       "matrices", "channels", "scaling", "eliminated")}
 
 
 def check_proof(params: TeleoperatorParams, polytope: GainPolytope, proof: Mapping[str, Any],
@@ -230,7 +230,8 @@ def _solution_holds(params: TeleoperatorParams, region: GainPolytope, variation:
             channels=tuple(np.asarray(c, dtype=float).reshape(-1, system.n)
                            for c in data["channels"]),
             scaling=tuple(float(x) for x in data["scaling"]),
-            delay_lower=tuple(float(x) for x in data["delay_lower"]))
+            delay_lower=tuple(float(x) for x in data["delay_lower"]),
+            eliminated=tuple(int(x) for x in data.get("eliminated", ())))
     except (KeyError, TypeError, ValueError, AttributeError):
         return False
     return bool(np.array_equal(cert.delay_bounds, bounds)
