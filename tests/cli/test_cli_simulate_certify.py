@@ -159,17 +159,21 @@ def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
 
 
 def test_certify_prints_the_closed_form_first_and_keeps_the_proven_set_on_ctrl_c():
+    """Ctrl-C reaches the whole foreground process group: the workers as well as the CLI."""
+    import os
     import signal
 
     process = subprocess.Popen([sys.executable, "-m", "teleopkit.cli", "certify", "--kr", "5:10",
-                                "--br", "30:60", "--method", "lmi", "--no-cache"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                "--br", "30:60", "--method", "lmi", "--no-cache",
+                                "--workers", "2"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
     assert process.stdout is not None
     seen = []
     for line in process.stdout:
         seen.append(line)
         if line.startswith("LMI: proven so far"):
-            process.send_signal(signal.SIGINT)
+            os.killpg(process.pid, signal.SIGINT)
             break
     out, err = process.communicate(timeout=120)
     assert seen[0].startswith("closed form (instant") and any("[nuno] CERTIFIED" in s for s in seen)

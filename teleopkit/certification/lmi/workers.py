@@ -41,6 +41,7 @@ import functools
 import multiprocessing
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import threading
@@ -163,8 +164,11 @@ def _is_main_test(test: ast.expr) -> bool:
 def _start_worker(threads: int, forms: str) -> None:
     """Start a worker: its share of the cores for BLAS, the pool's compiled problems.
 
-    The solver's share of the cores is passed with each solve.
+    The solver's share of the cores is passed with each solve. Ctrl-C, which a terminal sends
+    to every process of the group, is left to the main process: it keeps what was proven and
+    stops the pool, so a worker neither dies with a traceback nor cuts its solve's answer short.
     """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     threadpool_limits(threads)
     _share_forms(forms)
 
