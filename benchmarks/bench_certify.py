@@ -1,6 +1,7 @@
 """Timing of the certify LMIs: solve time against state dimension and number of vertices,
-bisection with DPP re-solves against rebuilding the cvxpy problem at every step, and the
-teleoperator's remote gains as enumerated vertices against full-block multipliers.
+bisection with DPP re-solves against rebuilding the cvxpy problem at every step, the
+teleoperator's remote gains as enumerated vertices against full-block multipliers, and two-joint
+cells posed on the kernel of the kinematic rows against the full descriptor relation.
 
 Run: ``python benchmarks/bench_certify.py [--quick]``.
 """
@@ -8,8 +9,10 @@ Run: ``python benchmarks/bench_certify.py [--quick]``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import time
+from unittest import mock
 
 import numpy as np
 import pandas as pd
@@ -20,7 +23,7 @@ from certify.methods import get_method
 from certify.solve import LMIProblem
 from certify.system import as_polytope
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi.systems import gain_set_system
+from teleopkit.certification.lmi.systems import gain_set_system, lmi_certificate
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 
@@ -158,6 +161,35 @@ def gain_table(quick: bool) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+KERNEL_CELLS = (((5, 10), (30, 60), 1.3), ((5, 10), (30, 60), 1.5), ((1, 13.25), (1, 38.25), 0.5),
+                ((25, 50), (75, 150), 0.3), ((1, 25), (1, 75), 0.2))
+"""Two-joint cells of the paper's gain box (``K_r``, ``B_r`` of both joints, delay bound): cells
+of the covers, certified and not."""
+
+
+def kernel_table() -> pd.DataFrame:
+    """Verdict and time of frozen-gain cells, on the kernel of ``q' = v`` and on the full relation.
+
+    The full relation is what the LMIs were without eliminating any row: every row multiplied
+    by the Finsler slack.
+    """
+    rows = []
+    for kr, br, h in KERNEL_CELLS:
+        polytope = GainPolytope.from_box(GainBox.uniform(kr, br, n_joints=2))
+        row: dict[str, object] = {"K_r": kr, "B_r": br, "h": h}
+        for form, rows_of in (("kernel", contextlib.nullcontext()),
+                              ("full relation", mock.patch("certify.system_data.eliminable_rows",
+                                                           lambda *args: ()))):
+            with rows_of:
+                start = time.perf_counter()
+                cert = lmi_certificate(paper_setup(), polytope, h, h)
+            row[f"{form} s"] = time.perf_counter() - start
+            row[f"{form} certified"] = cert.certified
+        rows.append(row)
+        print("  done:", row, flush=True)
+    return pd.DataFrame(rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="small sizes only")
@@ -174,6 +206,9 @@ def main() -> None:
           "configuration, h = 1 s: vertices against multipliers (switching, or with a\n"
           "rate-bounded storage)")
     print(gain_table(args.quick).to_string(index=False))
+    print("\nTwo-joint cells of the paper's box (frozen gains, RCC, one process): on the kernel of "
+          "the\nkinematic rows q' = v against the full descriptor relation")
+    print(kernel_table().to_string(index=False))
 
 
 if __name__ == "__main__":
