@@ -181,8 +181,6 @@ class _SB3View(VecEnv):
         return [False] * self.num_envs
 
 
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
