@@ -12,11 +12,17 @@ without ``jumps`` is continuous and its left limit is its value.
 
 from __future__ import annotations
 
+from typing import Protocol, cast
+
 import numpy as np
 
 from teleopkit.delays.profiles import DelayProfile
 
 __all__ = ["has_jumps", "sample_left"]
+
+
+class _Jumping(Protocol):
+    def sample_left(self, t: np.ndarray) -> np.ndarray: ...
 
 
 def has_jumps(profile: DelayProfile) -> bool:
@@ -50,4 +56,6 @@ def sample_left(profile: DelayProfile, t: np.ndarray) -> np.ndarray:
     ndarray, shape (S, B)
         ``profile.sample_left(t)`` for a profile with jumps, else ``profile.sample(t)``.
     """
-    return profile.sample_left(t) if has_jumps(profile) else profile.sample(t)
+    if has_jumps(profile):
+        return cast(_Jumping, profile).sample_left(t)
+    return profile.sample(t)

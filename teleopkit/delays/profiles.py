@@ -566,7 +566,7 @@ class TraceDelay:
         except (OSError, ValueError, pd.errors.ParserError) as error:
             reason = getattr(error, "strerror", None) or str(error).splitlines()[0]
             raise ValueError(f"cannot read delay trace {path}: {reason}") from None
-        columns = [_trace_column(path, table.columns, names, unit)
+        columns = [_trace_column(path, list(table.columns), names, unit)
                    for names in (("t", "time"), ("delay", "latency"))]
         try:
             times, delays = (table[c].to_numpy(dtype=float) * scale for c, scale in columns)

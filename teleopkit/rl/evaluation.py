@@ -397,7 +397,8 @@ def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
         A markdown paragraph.
     """
     covered = summary[summary["covered"]].sort_values("cost")
-    change = summary["cost"] / summary.loc[baseline, "cost"] - 1
+    cost = summary["cost"]
+    change = cost / cost[baseline] - 1
     best = str(covered.index[0]) if len(covered) else ""
     lines = [f"Of the rows covered by their certificate, `{best}` costs least "
              f"({100 * change[best]:+.1f} % against `{baseline}`)." if best else

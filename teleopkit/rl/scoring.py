@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from teleopkit.sim.state import FIELDS, StateLayout
+from teleopkit.sim.state import FIELDS, Field, StateLayout
 
 __all__ = ["OBSERVATION", "RewardWeights", "Score", "observation", "score"]
 
@@ -103,7 +103,7 @@ def _score(state: np.ndarray, delayed_ql: np.ndarray, action: np.ndarray, blocks
 def _blocks(n_joints: int) -> np.ndarray:
     """First entries of the state blocks the observation reads (see :func:`_observe`)."""
     layout = StateLayout(n_joints)
-    names = ("theta", "dtheta", "qr", "int_track", "int_damp")
+    names: tuple[Field, ...] = ("theta", "dtheta", "qr", "int_track", "int_damp")
     return np.array([layout.slice(name).start for name in names], dtype=np.int64)
 
 

@@ -249,9 +249,10 @@ class TD3:
         self.updates = 0
         # Parameter lists taken once: walking the modules at every clip, soft update and critic
         # freeze cost about 0.1 ms per update.
-        self._params = {name: list(module.parameters())
-                        for name, module in self._networks().items()}
-        self._critic_params = [list(c.parameters()) for c in self.critics]
+        self._params: dict[str, list[torch.Tensor]] = {
+            name: list(module.parameters()) for name, module in self._networks().items()}
+        self._critic_params: list[list[torch.Tensor]] = [list(c.parameters())
+                                                         for c in self.critics]
 
     @classmethod
     def for_env(cls, env: Any, config: TD3Config | None = None, seed: int = 0) -> TD3:

@@ -54,7 +54,7 @@ def _delay_pair(spec: str, rng: np.random.Generator,
     return parse_delay(spec, rng)
 
 
-def _model_params(row: Mapping[str, Any]) -> TeleoperatorParams:
+def _model_params(row: Mapping[str, Any] | pd.Series) -> TeleoperatorParams:
     """The paper's teleoperator with the row's model factors."""
     base = paper_setup()
     n = base.n_joints

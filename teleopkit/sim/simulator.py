@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, Protocol, cast
 
 import numpy as np
 
@@ -50,6 +50,10 @@ if TYPE_CHECKING:
     import pandas as pd
 
 Backend = Literal["compiled", "numpy"]
+
+
+class _Factored(Protocol):
+    def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
@@ -218,7 +222,7 @@ class Simulator:
         scale = np.ones((2, self.batch))
         for c, profile in enumerate(channels):
             if self._factored:
-                delays[:, c, 0], scale[c] = profile.factors(times)
+                delays[:, c, 0], scale[c] = cast(_Factored, profile).factors(times)
             else:
                 delays[:, c] = profile.sample(times)
         unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
@@ -487,9 +491,7 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
     params = params if params is not None else paper_setup()
     rng = np.random.default_rng(seed)
     reference = sample_reference_gains(rng, 1, params.n_joints)
-    if isinstance(delay, int | float) and not isinstance(delay, bool):
-        delay = (ConstantDelay(float(delay)), ConstantDelay(float(delay)))
-    forward, backward = parse_delay(delay, rng) if isinstance(delay, str) else delay
+    forward, backward = _delay_profiles(delay, rng)
     whole_periods(duration, control_period)
     check_duration((forward, backward), duration)
     action = None
@@ -525,3 +527,20 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
     """
     return simulate_trajectory(gains, duration, delay, seed, params, dt,
                                control_period).to_frame()
+
+
+def _delay_profiles(delay: object, rng: np.random.Generator,
+                    ) -> tuple[DelayProfile, DelayProfile]:
+    """The forward and backward profiles that an argument ``delay`` of :func:`simulate` names."""
+    if isinstance(delay, str):
+        return parse_delay(delay, rng)
+    if isinstance(delay, int | float) and not isinstance(delay, bool):
+        return ConstantDelay(float(delay)), ConstantDelay(float(delay))
+    if isinstance(delay, tuple | list):
+        if len(delay) == 2 and all(callable(getattr(p, "sample", None)) for p in delay):
+            return delay[0], delay[1]
+        got = f"{len(delay)} item(s), not two delay profiles"
+    else:
+        got = repr(delay)
+    raise ValueError("delay must be a spec string, a constant in seconds or a pair of delay "
+                     f"profiles (forward, backward), got {got}")

@@ -19,6 +19,7 @@ uses this layout).
 
 from __future__ import annotations
 
+import builtins
 from dataclasses import dataclass
 from functools import cache, cached_property
 from typing import Literal
@@ -62,8 +63,8 @@ class StateLayout:
                 or self.n_joints < 1:
             raise ValueError(f"a state layout needs n_joints >= 1, got {self.n_joints!r}")
 
-    @classmethod
-    def of(cls, state: np.ndarray) -> StateLayout:
+    @staticmethod
+    def of(state: np.ndarray) -> StateLayout:
         """The layout of states whose last axis has ``12 n`` entries.
 
         Parameters
@@ -76,14 +77,14 @@ class StateLayout:
         StateLayout
             The layout for ``n`` joints.
         """
-        return _layout(cls, np.shape(state)[-1])
+        return _layout(np.shape(state)[-1])
 
     @property
     def size(self) -> int:
         """Length ``12 n`` of a state vector."""
         return len(FIELDS) * self.n_joints
 
-    def slice(self, name: Field) -> slice:
+    def slice(self, name: Field) -> builtins.slice:
         """The entries of block ``name``.
 
         Parameters
@@ -102,7 +103,7 @@ class StateLayout:
             raise ValueError(f"unknown state block {name!r}; known: {', '.join(FIELDS)}") from None
 
     @cached_property
-    def _slices(self) -> dict[str, slice]:
+    def _slices(self) -> dict[str, builtins.slice]:
         n = self.n_joints
         return {name: slice(k * n, (k + 1) * n) for k, name in enumerate(FIELDS)}
 
@@ -168,8 +169,8 @@ class StateLayout:
 
 
 @cache
-def _layout(cls: type[StateLayout], size: int) -> StateLayout:
+def _layout(size: int) -> StateLayout:
     """The (shared, immutable) layout of states of ``size`` entries."""
     if size % len(FIELDS):
         raise ValueError(f"a state has {len(FIELDS)} n entries, got {size}")
-    return cls(size // len(FIELDS))
+    return StateLayout(size // len(FIELDS))

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from teleopkit.sim.metrics import error_metrics
-from teleopkit.sim.state import StateLayout
+from teleopkit.sim.state import Field, StateLayout
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -143,9 +143,8 @@ class Trajectory(StepResult):
         layout = self.layout
         n = layout.n_joints
         state = self.state[:, scenario]
-        signals: dict[str, np.ndarray] = {
-            name: layout.get(state, name)  # type: ignore[arg-type]
-            for name in ("ql", "dql", "qr", "dqr", "theta", "dtheta")}
+        names: tuple[Field, ...] = ("ql", "dql", "qr", "dqr", "theta", "dtheta")
+        signals: dict[str, np.ndarray] = {name: layout.get(state, name) for name in names}
         columns: dict[str, np.ndarray] = {"t": self.t}
         for name, signal in signals.items():
             columns.update({f"{name}_{i + 1}": signal[:, i] for i in range(n)})

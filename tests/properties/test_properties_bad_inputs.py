@@ -18,7 +18,7 @@ import pytest
 from teleopkit.certification import certify_gains, load_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.cli import main
-from teleopkit.delays import PiecewiseDelay, TraceDelay, parse_delay
+from teleopkit.delays import ConstantDelay, PiecewiseDelay, TraceDelay, parse_delay
 from teleopkit.model.linearize import linearized_state_space
 from teleopkit.model.params import ElasticJoints, PDGains, paper_setup
 from teleopkit.rl.env import FlexTeleopConfig
@@ -332,6 +332,12 @@ API_CASES = [
     (lambda: simulate((10.0, 30.0), delay="constant:500"),
      "the delay reaches 500 s, not shorter than the 40 s run; delays are in seconds: 500 "
      "milliseconds is written 500ms (a trace column delay_ms)"),
+    (lambda: simulate((10.0, 30.0), delay=True),
+     "delay must be a spec string, a constant in seconds or a pair of delay profiles "
+     "(forward, backward), got True"),
+    (lambda: simulate((10.0, 30.0), delay=(ConstantDelay(0.1),)),
+     "delay must be a spec string, a constant in seconds or a pair of delay profiles "
+     "(forward, backward), got 1 item(s), not two delay profiles"),
     (lambda: simulate((10.0, 30.0), duration=1e12),
      None),  # the memory needed depends on the machine: checked by prefix below
     (lambda: paper_scenarios(0, batch=0),

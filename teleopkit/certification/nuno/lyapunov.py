@@ -43,6 +43,7 @@ between samples by cubic Hermite polynomials (``K' = I``), exact on the grid.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -95,8 +96,10 @@ class ScheduledStorage:
         ScheduledStorage
             The storage.
         """
-        return cls(**{key: tuple(value) if isinstance(value, list | tuple) else float(value)
-                      for key, value in details.items()})
+        fields: dict[str, Any] = {
+            key: tuple(value) if isinstance(value, list | tuple) else float(value)
+            for key, value in details.items()}
+        return cls(**fields)
 
     @classmethod
     def for_plant(cls, params: TeleoperatorParams, tl_max: float,
