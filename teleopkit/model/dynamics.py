@@ -1,11 +1,21 @@
-"""Rigid-body dynamics of planar serial arms with point masses at the link ends (numpy, batched).
+"""Rigid-body dynamics of planar serial arms (numpy, batched).
 
-With absolute link angles ``phi = T q`` (``T`` lower-triangular ones) the inertia is
-``M_abs[i, j] = a_ij cos(phi_i - phi_j)`` with ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``, and
-``M(q) = T^T M_abs T``. The Coriolis matrix ``C = T^T C_abs T`` with
-``C_abs[i, j] = a_ij sin(phi_i - phi_j) phi_j'`` makes ``M' - 2C`` skew-symmetric. For two links
-this is the paper's ``M11 = l2^2 m2 + l1^2 (m1 + m2) + 2 l1 l2 m2 cos q2`` and
-``C = beta sin q2 [[-q2', -(q1' + q2')], [q1', 0]]`` with ``beta = l1 l2 m2``.
+Link ``i`` has length ``l_i``, mass ``m_i`` at the distance ``c_i`` from its joint and the
+inertia ``I_i`` about its centre of mass (:class:`~teleopkit.model.params.PlanarArm`; the paper's
+point masses at the tips are ``c = l``, ``I = 0``). With absolute link angles ``phi = T q``
+(``T`` lower-triangular ones) the inertia is ``M(q) = T^T M_abs T`` with
+``M_abs[i, j] = a_ij cos(phi_i - phi_j)`` and the coefficients
+
+- ``a_ii = m_i c_i^2 + I_i + l_i^2 sum_{k > i} m_k``,
+- ``a_ij = a_ji = l_i (m_j c_j + l_j sum_{k > j} m_k)`` for ``i < j``,
+
+which for point masses are ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``. The Coriolis matrix
+``C = T^T C_abs T`` with ``C_abs[i, j] = a_ij sin(phi_i - phi_j) phi_j'`` makes ``M' - 2C``
+skew-symmetric: the diagonal ``a_ii`` is constant, so ``M_abs' - 2 C_abs`` is
+``-a_ij sin(phi_i - phi_j) (phi_i' + phi_j')``, antisymmetric. For two links this is
+``M11 = a11 + a22 + 2 a12 cos q2``, ``M12 = a22 + a12 cos q2``, ``M22 = a22`` and
+``C = beta sin q2 [[-q2', -(q1' + q2')], [q1', 0]]`` with ``beta = a12 = l1 c2 m2``; the paper's
+``M11 = l2^2 m2 + l1^2 (m1 + m2) + 2 l1 l2 m2 cos q2`` and ``beta = l1 l2 m2`` for point masses.
 
 All functions accept any leading batch axes: ``q`` has shape ``(..., n)``.
 """
@@ -28,22 +38,31 @@ __all__ = [
 
 
 def inertia_coefficients(arm: PlanarArm) -> np.ndarray:
-    """Return the inertia coefficients ``a_ij = l_i l_j sum_{k >= max(i, j)} m_k``.
+    """Return the inertia coefficients ``a_ij`` of ``M_abs[i, j] = a_ij cos(phi_i - phi_j)``.
+
+    They are the point-mass coefficients ``l_i l_j sum_{k >= max(i, j)} m_k`` plus what each
+    link's own mass distribution changes: ``m_i (c_i^2 - l_i^2) + I_i`` on the diagonal and
+    ``l_i m_j (c_j - l_j)`` for ``i < j`` (zero for point masses at the tips, so that those
+    coefficients keep their bits).
 
     Parameters
     ----------
     arm : PlanarArm
-        Arm geometry and masses.
+        Arm geometry, masses, centres of mass and link inertias.
 
     Returns
     -------
     ndarray, shape (n, n)
-        Symmetric coefficients ``a_ij`` in kg m^2 (``M_abs[i, j] = a_ij cos(phi_i - phi_j)``).
+        Symmetric coefficients ``a_ij`` in kg m^2.
     """
-    lengths = np.array(arm.lengths)
-    outboard = np.cumsum(np.array(arm.masses)[::-1])[::-1]
+    lengths, masses = np.array(arm.lengths), np.array(arm.masses)
+    centres = np.array(arm.centres)
+    outboard = np.cumsum(masses[::-1])[::-1]
     index = np.arange(arm.n_joints)
-    return np.outer(lengths, lengths) * outboard[np.maximum.outer(index, index)]
+    point = np.outer(lengths, lengths) * outboard[np.maximum.outer(index, index)]
+    shift = np.triu(np.outer(lengths, masses * (centres - lengths)), 1)
+    own = masses * (centres**2 - lengths**2) + np.array(arm.link_inertias)
+    return point + shift + shift.T + np.diag(own)
 
 
 def _absolute(q: np.ndarray) -> np.ndarray:

@@ -57,18 +57,45 @@ def _positive(name: str, values: tuple[float, ...], allow_zero: bool = False) ->
 
 @dataclass(frozen=True)
 class PlanarArm:
-    """Planar serial arm with point masses at the link ends, no gravity and no friction.
+    """Planar serial arm of rigid links, no gravity and no friction.
+
+    Each link carries its mass at a distance ``com`` from its joint along the link and turns with
+    an inertia ``inertia`` about its centre of mass. The defaults are the paper's point masses at
+    the link tips: ``com = lengths`` and zero link inertia, stored as ``None`` (the canonical
+    form, which keeps :func:`plant_record` and its fingerprint as they were for point masses).
 
     Parameters
     ----------
     lengths : tuple of float
         Link lengths in metres, base to tip.
     masses : tuple of float
-        Point mass at the end of each link, in kilograms.
+        Mass of each link, in kilograms.
+    com : tuple of float, optional
+        Distance of each link's centre of mass from its joint, in metres (non-negative). None,
+        or values equal to ``lengths``, puts the masses at the link tips.
+    inertia : tuple of float, optional
+        Moment of inertia of each link about its own centre of mass, in kg m^2 (non-negative).
+        None, or all zeros, makes point masses.
+
+    Raises
+    ------
+    ValueError
+        If a value is missing, not finite or negative, or if a link has neither a centre of mass
+        off its joint nor an inertia (its rotation would carry no kinetic energy, and ``M(q)``
+        could be singular).
+
+    Examples
+    --------
+    >>> PlanarArm((0.38, 0.38), (0.5, 0.35), com=(0.38, 0.38)).com is None
+    True
+    >>> PlanarArm((0.38, 0.38), (0.5, 0.35), com=(0.19, 0.19), inertia=0.006).link_inertias
+    (0.006, 0.006)
     """
 
     lengths: tuple[float, ...] = (0.38, 0.38)
     masses: tuple[float, ...] = (0.5, 0.35)
+    com: tuple[float, ...] | None = None
+    inertia: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "lengths", _vector("arm lengths", self.lengths))
@@ -76,11 +103,35 @@ class PlanarArm:
         object.__setattr__(self, "masses", _vector("arm masses", self.masses, n))
         _positive("arm lengths", self.lengths)
         _positive("arm masses", self.masses)
+        self._canonical("com", self.lengths)
+        self._canonical("inertia", (0.0,) * n)
+        idle = [i + 1 for i in range(n) if self.centres[i] == 0 and self.link_inertias[i] == 0]
+        if idle:
+            raise ValueError(f"arm com or inertia must be positive on every link, links {idle} "
+                             "have neither (no kinetic energy of their own)")
+
+    def _canonical(self, name: str, default: tuple[float, ...]) -> None:
+        """Check the optional field ``name``; store None when it equals its ``default``."""
+        values = getattr(self, name)
+        if values is not None:
+            values = _vector(f"arm {name}", values, self.n_joints)
+            _positive(f"arm {name}", values, allow_zero=True)
+            object.__setattr__(self, name, None if values == default else values)
 
     @property
     def n_joints(self) -> int:
         """Number of joints."""
         return len(self.lengths)
+
+    @property
+    def centres(self) -> tuple[float, ...]:
+        """Distance of each link's centre of mass from its joint, in metres (``com`` or tips)."""
+        return self.lengths if self.com is None else self.com
+
+    @property
+    def link_inertias(self) -> tuple[float, ...]:
+        """Moment of inertia of each link about its centre of mass, in kg m^2 (zeros if None)."""
+        return (0.0,) * self.n_joints if self.inertia is None else self.inertia
 
 
 @dataclass(frozen=True)
@@ -387,6 +438,9 @@ def one_joint_setup() -> TeleoperatorParams:
 _PLANT_LABELS = {
     "local_arm.lengths": "local arm lengths", "local_arm.masses": "local arm masses",
     "remote_arm.lengths": "remote arm lengths", "remote_arm.masses": "remote arm masses",
+    "local_arm.com": "local arm centres of mass", "local_arm.inertia": "local arm link inertias",
+    "remote_arm.com": "remote arm centres of mass",
+    "remote_arm.inertia": "remote arm link inertias",
     "joints.stiffness": "joint stiffness S_r", "joints.rotor_inertia": "rotor inertia J_r",
     "local_gains.stiffness": "K_l", "local_gains.damping": "B_l",
     "operator.stiffness": "operator stiffness K_s", "operator.damping": "operator damping K_d",
@@ -405,6 +459,11 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _arm_record(arm: PlanarArm) -> dict[str, Any]:
+    """The arm's fields without those left at their point-mass default (``com``, ``inertia``)."""
+    return {key: value for key, value in asdict(arm).items() if value is not None}
+
+
 def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
     """What a stability certificate depends on, as plain JSON-ready data, with a fingerprint.
 
@@ -420,11 +479,13 @@ def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``local_arm``, ``remote_arm``, ``joints``, ``local_gains``, ``operator`` (stiffness and
-        damping), ``environment`` and ``fingerprint`` (SHA-256 of the rest, 16 hex digits).
+        ``local_arm``, ``remote_arm`` (``com`` and ``inertia`` only where they are not None, so
+        that the record of point masses is the one from before these fields existed),
+        ``joints``, ``local_gains``, ``operator`` (stiffness and damping), ``environment`` and
+        ``fingerprint`` (SHA-256 of the rest, 16 hex digits).
     """
     record = {
-        "local_arm": asdict(params.local_arm), "remote_arm": asdict(params.remote_arm),
+        "local_arm": _arm_record(params.local_arm), "remote_arm": _arm_record(params.remote_arm),
         "joints": asdict(params.joints), "local_gains": asdict(params.local_gains),
         "operator": {"stiffness": params.operator.stiffness,
                      "damping": params.operator.damping},
@@ -496,9 +557,10 @@ def plant_params(record: Mapping[str, Any]) -> TeleoperatorParams:
     Returns
     -------
     TeleoperatorParams
-        Arms, joints, local gains, operator spring and damper and environment of the record;
-        remote gains ``K_r = 10, B_r = 30``, the operator holding the origin, every position
-        starting at zero and no torque saturation.
+        Arms (masses at the link tips and no link inertia where the record has no ``com`` or
+        ``inertia``), joints, local gains, operator spring and damper and environment of the
+        record; remote gains ``K_r = 10, B_r = 30``, the operator holding the origin, every
+        position starting at zero and no torque saturation.
 
     Raises
     ------

@@ -13,7 +13,11 @@ from teleopkit.model.dynamics import (
 )
 from teleopkit.model.params import PlanarArm
 
-ARMS = [PlanarArm(), PlanarArm((0.3, 0.25, 0.2, 0.15), (0.6, 0.4, 0.3, 0.2))]
+ARMS = [PlanarArm(), PlanarArm((0.3, 0.25, 0.2, 0.15), (0.6, 0.4, 0.3, 0.2)),
+        PlanarArm((0.38, 0.38), (0.5, 0.35), com=(0.19, 0.25), inertia=(0.006, 0.004)),
+        PlanarArm((0.3, 0.25, 0.2), (0.6, 0.4, 0.3), com=(0.0, 0.3, 0.1),
+                  inertia=(0.01, 0.0, 0.002))]
+"""Point masses (the paper's and four links), then links with centres of mass and inertias."""
 
 
 @pytest.mark.parametrize("arm", ARMS)
@@ -60,9 +64,9 @@ def test_mass_matrix_derivative_matches_finite_difference(arm, rng):
     np.testing.assert_allclose(mass_matrix_derivative(arm, q, dq), numeric, atol=1e-8)
 
 
-def test_coriolis_is_the_lagrangian_term(rng):
+@pytest.mark.parametrize("arm", ARMS[1:])
+def test_coriolis_is_the_lagrangian_term(arm, rng):
     """C q' equals M' q' - dT/dq from the Lagrangian, by finite differences."""
-    arm = ARMS[1]
     q = rng.uniform(-np.pi, np.pi, size=arm.n_joints)
     dq = rng.normal(size=arm.n_joints)
     eps = 1e-6
