@@ -32,10 +32,10 @@ import pandas as pd
 import torch
 
 from teleopkit.model.params import InitialState, paper_setup
-from teleopkit.rl.comparison import REFERENCE, Comparators, compare, policy_certificate
-from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.comparison import REFERENCE, compare, policy_certificate
 from teleopkit.rl.evaluation import summarise, to_markdown
 from teleopkit.rl.policy import PRETRAINED_COVERED, GainPolicy
+from teleopkit.setup import Setup
 
 METRICS = ("cost", "cost_opening", "cost_rest", "rms_track", "rms_damp")
 
@@ -71,9 +71,6 @@ def main() -> None:
     policies = ([GainPolicy.load(p) for p in args.policies] if args.policies
                 else [GainPolicy.pretrained(PRETRAINED_COVERED)])
     certificate = policy_certificate(policies[0])
-    comparators = (Comparators.stored(policies[0], certificate)
-                   or Comparators.find(policies[0], certificate,
-                                       FlexTeleopConfig(certificate=certificate)))
     trace = recorded_style_trace(args.out / "recorded_style_trace.csv")
     delays = {"paper": "paper", "constant": "constant:0.6", "switching": "switching:0:1:50ms",
               "sine": "sine:0.6:0.35:0.2", "trace": f"csv:{trace}"}
@@ -81,9 +78,10 @@ def main() -> None:
     cases = [(start, seed, shape) for start in args.starts for seed in args.seeds
              for shape in (delays if start == "paper" else ["paper"])]
     for start, seed, shape in cases:
-        params = replace(paper_setup(), initial=STARTS[start])
-        summary = summarise(compare(policies, args.scenarios, seed, certificate, delays[shape],
-                                    comparators=comparators, params=params))
+        # comparators are searched for each start and delay shape (and cached), never reused
+        setup = Setup.from_params(replace(paper_setup(), initial=STARTS[start]))
+        summary = summarise(compare(policies, args.scenarios, seed, certificate,
+                                    None if shape == "paper" else delays[shape], setup=setup))
         tables.append(summary.assign(delay=shape, scenario_seed=seed, start=start))
         print(f"\nstart: {start}, delays: {shape}, scenario seed {seed}", flush=True)
         print(to_markdown(summary, METRICS, baseline=REFERENCE), flush=True)

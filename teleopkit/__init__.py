@@ -6,7 +6,9 @@ action is projected into the certified set.
 
 The layers, each a sub-package, from the bottom up: :mod:`teleopkit.model` (parameters,
 dynamics, P+d laws, linearisation), :mod:`teleopkit.delays` (delay profiles and channel
-histories), :mod:`teleopkit.sim` (scenarios, the simulator, metrics), :mod:`teleopkit.certification`
+histories), :mod:`teleopkit.sim` (scenarios, the simulator, metrics) with beside it
+:mod:`teleopkit.setup` (a user's plant, network, operator and start, read from a setup file,
+which draws the scenarios), :mod:`teleopkit.certification`
 (gain sets and their certificates), :mod:`teleopkit.safety` (the projection of every gain onto a
 certified set), :mod:`teleopkit.rl` (environments, TD3, training and evaluation) and
 :mod:`teleopkit.robustness` (campaigns and falsification). The names below load on first use,
@@ -26,6 +28,8 @@ _EXPORTS = {
         "ConstantDelay", "FourierDelay", "SinusoidalDelay", "SwitchingDelay", "TraceDelay")},
     "parse_delay": "delays.spec",
     "Scenario": "sim.scenarios",
+    "Setup": "setup",
+    "SetupError": "setup",
     "paper_scenarios": "sim.scenarios",
     "Simulator": "sim.simulator",
     "simulate": "sim.simulator",

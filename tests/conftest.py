@@ -16,6 +16,20 @@ from teleopkit.model.params import (
 )
 
 
+@pytest.fixture(autouse=True, scope="session")
+def private_cache(tmp_path_factory):
+    """Certificates and comparators found by the tests go to a temporary cache, never ~/.cache."""
+    import os
+
+    previous = os.environ.get("TELEOPKIT_CACHE")
+    os.environ["TELEOPKIT_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    yield
+    if previous is None:
+        os.environ.pop("TELEOPKIT_CACHE", None)
+    else:
+        os.environ["TELEOPKIT_CACHE"] = previous
+
+
 @pytest.fixture
 def params():
     return paper_setup()

@@ -25,6 +25,7 @@ from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
 from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.progress import reports_progress
 
 __all__ = ["DEFAULT_BOX", "certify_all", "certify_gains", "default_certificate"]
 
@@ -34,17 +35,18 @@ DEFAULT_BOX = ((1.0, 50.0), (1.0, 150.0))
 _log = logging.getLogger("teleopkit.certification")
 
 
+@reports_progress
 def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                 tr_max: float = 1.0, method: str = "nuno",
                 variation: GainVariation | str = "frozen", tl_min: float = 0.0,
                 tr_min: float = 0.0, workers: int | None = None, cache: bool = False,
-                on_proven: Callable[[GainCertificate], None] | None = None
-                ) -> list[GainCertificate]:
+                on_proven: Callable[[GainCertificate], None] | None = None,
+                progress: bool | None = None) -> list[GainCertificate]:
     """The answer of every method that ``method`` runs for the class (see :func:`certify_gains`).
 
     Parameters
     ----------
-    params, box, tl_max, tr_max, method, variation, tl_min, tr_min, workers, cache
+    params, box, tl_max, tr_max, method, variation, tl_min, tr_min, workers, cache, progress
         As in :func:`certify_gains`.
     on_proven : callable, optional
         Handed each larger set the LMI method proves on the way (a certificate whose margin was
@@ -90,7 +92,7 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
                   tr_max: float = 1.0, method: str = "nuno",
                   variation: GainVariation | str = "frozen", tl_min: float = 0.0,
                   tr_min: float = 0.0, workers: int | None = None,
-                  cache: bool = False) -> GainCertificate:
+                  cache: bool = False, progress: bool | None = None) -> GainCertificate:
     """Certify a box of remote gains for delays ``T_l_min <= T_l(t) <= T_l*``, likewise ``T_r``.
 
     Parameters
@@ -116,6 +118,9 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
     cache : bool
         Reuse an LMI certificate of the same question kept on disk (re-verified against the
         plant) and keep new ones there (:mod:`teleopkit.certification.cache`).
+    progress : bool, optional
+        Show the LMI search (cells solved, margin bracket) on standard error: by default on a
+        terminal only; ``False`` never, ``True`` always (:mod:`teleopkit.progress`).
 
     Returns
     -------
@@ -131,10 +136,11 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
     (True, 1.0954)
     """
     return best_certificate(certify_all(params, box, tl_max, tr_max, method, variation, tl_min,
-                                        tr_min, workers, cache))
+                                        tr_min, workers, cache, progress=progress))
 
 
-def default_certificate(params: TeleoperatorParams | None = None, delay_bound: float = 1.0,
+def default_certificate(params: TeleoperatorParams | None = None,
+                        delay_bound: float | tuple[float, float] = 1.0,
                         variation: GainVariation | str = "frozen") -> GainCertificate:
     """Closed-form certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
 
@@ -146,8 +152,8 @@ def default_certificate(params: TeleoperatorParams | None = None, delay_bound: f
     ----------
     params : TeleoperatorParams, optional
         Teleoperator; the paper's by default.
-    delay_bound : float
-        ``T_l* = T_r*`` in seconds.
+    delay_bound : float or (float, float)
+        ``T_l* = T_r*`` in seconds, or the pair ``(T_l*, T_r*)``.
     variation : GainVariation or str
         The gain class: ``"frozen"`` by default, or a scheduled class (``"scheduled:L"``,
         ``"tank"``), which covers what a tuner does with the gains.
@@ -159,5 +165,6 @@ def default_certificate(params: TeleoperatorParams | None = None, delay_bound: f
     """
     params = params if params is not None else paper_setup()
     box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
-    return certify_gains(params, box, delay_bound, delay_bound, method="nuno",
-                         variation=variation)
+    forward, backward = (delay_bound if isinstance(delay_bound, tuple)
+                         else (delay_bound, delay_bound))
+    return certify_gains(params, box, forward, backward, method="nuno", variation=variation)

@@ -14,6 +14,7 @@ import click
 
 from teleopkit.cli.certificates import certify
 from teleopkit.cli.robustness import campaign_command, falsify_command
+from teleopkit.cli.setup import setup_command
 from teleopkit.cli.simulate import simulate_command
 from teleopkit.cli.tuning import evaluate_command, reproduce_command, train_command
 from teleopkit.files import RunLocked
@@ -27,8 +28,8 @@ def cli() -> None:
     """Delayed bilateral teleoperation: simulate, certify, train and evaluate gain tuners."""
 
 
-for _command in (simulate_command, certify, train_command, evaluate_command, reproduce_command,
-                 campaign_command, falsify_command):
+for _command in (setup_command, simulate_command, certify, train_command, evaluate_command,
+                 reproduce_command, campaign_command, falsify_command):
     cli.add_command(_command)
 
 

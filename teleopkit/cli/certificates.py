@@ -8,11 +8,11 @@ from typing import TYPE_CHECKING
 
 import click
 
-from teleopkit.cli.options import gain_variation, progress
+from teleopkit.cli.options import gain_variation, progress, setup_option
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
-    from teleopkit.model.params import InitialState
+    from teleopkit.setup import Setup
 
 __all__ = ["certify"]
 
@@ -23,19 +23,22 @@ _FLOOR = click.FloatRange(min=0, max=1e6)
 @click.command()
 @click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
 @click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
-@click.option("--kl", type=click.FloatRange(min=0, min_open=True), default=25.0,
-              show_default=True, help="Local gain K_l.")
-@click.option("--bl", type=click.FloatRange(min=0, min_open=True), default=10.0,
-              show_default=True, help="Local damping B_l.")
-@click.option("--tl-max", type=_BOUND, default=1.0, show_default=True,
-              help="Forward delay bound T_l* [s].")
-@click.option("--tr-max", type=_BOUND, default=1.0, show_default=True,
-              help="Backward delay bound T_r* [s].")
-@click.option("--tl-min", type=_FLOOR, default=0.0, show_default=True,
+@click.option("--kl", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Local gain K_l of every joint [default: the setup's].")
+@click.option("--bl", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Local damping B_l of every joint [default: the setup's].")
+@click.option("--tl-max", type=_BOUND, default=None,
+              help="Forward delay bound T_l* [s] [default: the setup's network.forward.max, "
+                   "1 s for the paper].")
+@click.option("--tr-max", type=_BOUND, default=None,
+              help="Backward delay bound T_r* [s] [default: the setup's network.backward.max].")
+@click.option("--tl-min", type=_FLOOR, default=None,
               help="Minimum forward delay T_l_min [s] (a network's latency floor; used by the "
-                   "LMIs, the closed form covers delays from 0).")
-@click.option("--tr-min", type=_FLOOR, default=0.0, show_default=True,
-              help="Minimum backward delay T_r_min [s].")
+                   "LMIs, the closed form covers delays from 0) [default: the setup's "
+                   "network.forward.min].")
+@click.option("--tr-min", type=_FLOOR, default=None,
+              help="Minimum backward delay T_r_min [s] [default: the setup's "
+                   "network.backward.min].")
 @click.option("--method", type=click.Choice(["nuno", "lmi", "all"]), default="nuno",
               show_default=True,
               help="nuno: closed form and its storage (instant); lmi: LK/LMI on the "
@@ -54,25 +57,36 @@ _FLOOR = click.FloatRange(min=0, max=1e6)
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Worker processes of the LMI solves (1: in this process) [default: "
                    "$TELEOPKIT_WORKERS, else the core count].")
-def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, tr_max: float,
-            tl_min: float, tr_min: float, method: str, variation: object, as_json: bool,
-            cache: bool, show_progress: bool, workers: int | None) -> int:
+@setup_option
+def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
+            tl_max: float | None, tr_max: float | None, tl_min: float | None,
+            tr_min: float | None, method: str, variation: object, as_json: bool, cache: bool,
+            show_progress: bool, workers: int | None, setup: Setup) -> int:
     """Certify that every remote gain in the ranges is stable for the delay bounds.
 
-    The answer says what it covers: the gain class in plain words and every assumption (see
-    the documentation's "What is certified" page).
+    It answers for the setup's plant (the paper's by default) and names it. The answer says
+    what it covers: the gain class in plain words and every assumption (see the
+    documentation's "What is certified" page).
     """
     from teleopkit.certification import best_certificate, certify_all, methods_for
     from teleopkit.certification.gain_sets import GainBox, parse_range
-    from teleopkit.certification.report import certificate_table
-    from teleopkit.model.params import PDGains, paper_setup
+    from teleopkit.certification.report import certificate_table, plant_text
+    from teleopkit.model.params import PDGains
 
+    tl_max = setup.network.forward.max if tl_max is None else tl_max
+    tr_max = setup.network.backward.max if tr_max is None else tr_max
+    tl_min = setup.network.forward.min if tl_min is None else tl_min
+    tr_min = setup.network.backward.min if tr_min is None else tr_min
     for option, low, high in (("--tl-min", tl_min, tl_max), ("--tr-min", tr_min, tr_max)):
         if not low < high:  # NaN included
             raise click.BadParameter(f"{low:g} s is not a delay below the upper bound {high:g} s",
                                      param_hint=f"'{option}'")
-    params = replace(paper_setup(), local_gains=PDGains.uniform(kl, bl))
-    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
+    n, local = setup.n_joints, setup.params.local_gains
+    params = replace(setup.params, local_gains=PDGains(
+        local.stiffness if kl is None else (kl,) * n, local.damping if bl is None else (bl,) * n))
+    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"), n)
+    if not as_json:
+        click.echo(f"plant: {plant_text(params)}")
     proven: list[GainCertificate] = []
     if "lmi" in methods_for(method, variation) and not as_json:
         click.echo("closed form (instant; the LMI answer follows):")
@@ -92,11 +106,11 @@ def certify(kr_range: str, br_range: str, kl: float, bl: float, tl_max: float, t
                                   on_proven=improved)
     except KeyboardInterrupt:
         if proven:
-            _answer([proven[-1]], as_json, params.initial,
+            _answer([proven[-1]], as_json, setup,
                     "interrupted: the best set proven so far (its delay margin was not searched)")
         raise
     best = best_certificate(results)
-    _answer(results, as_json, params.initial)
+    _answer(results, as_json, setup)
     return 0 if best.certified else 1
 
 
@@ -113,19 +127,23 @@ def _set_text(certificate: GainCertificate) -> str:
         for i in range(certificate.box.n_joints))
 
 
-def _answer(results: list[GainCertificate], as_json: bool, start: InitialState,
-            note: str = "") -> None:
-    """Print the answer: the table (with ``note`` first), or the best certificate as JSON."""
+def _answer(results: list[GainCertificate], as_json: bool, setup: Setup, note: str = "") -> None:
+    """Print the answer: the table (with ``note`` first), or the best certificate as JSON.
+
+    The JSON records the setup it was asked for (``setup``) beside the certified plant.
+    """
     from teleopkit.certification import best_certificate
     from teleopkit.certification.report import certificate_table
 
     best = best_certificate(results)
     if as_json:
         payload = best.to_dict()
+        start = setup.params.initial
         guarantee = best.guarantee(start)
         if guarantee is not None:  # from the paper's start (no proof depends on a start)
             payload["guarantee"] = {**guarantee.to_dict(), "start": asdict(start)}
         payload["results"] = [c.to_dict() for c in results]
+        payload["setup"] = setup.record
         if note:
             payload["interrupted"] = note
         click.echo(json.dumps(payload, indent=2))

@@ -7,27 +7,26 @@ before a run starts, so a bad path never leaves half the results behind.
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import math
 import os
 import shutil
-import sys
 import tempfile
-import time
-from collections.abc import Iterator
+from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any
 
 import click
+
+from teleopkit.progress import show_progress
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
     from teleopkit.certification.gain_classes import GainVariation
+    from teleopkit.setup import Setup
 
 __all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
            "check_output_dir", "delay_spec", "gain_variation", "gains",
-           "progress", "read_certificate", "single_thread"]
+           "progress", "read_certificate", "read_setup", "setup_option", "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
@@ -38,7 +37,7 @@ def _bad(option: str, message: str) -> click.BadParameter:
 
 
 def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) -> list[float]:
-    """Option callback: ``K`` or ``K1,K2`` as one non-negative finite number per joint.
+    """Option callback: ``K`` (every joint) or ``K1,K2,...`` (one per joint), non-negative.
 
     Parameters
     ----------
@@ -52,16 +51,14 @@ def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) 
     Returns
     -------
     list of float
-        Two numbers (the paper's two joints).
+        The numbers (the command checks their count against the setup's joints).
     """
     name = f"--{param.name}" if param is not None and param.name else "gain"
     try:
         numbers = [float(x) for x in value.split(",")]
     except ValueError:
-        raise _bad(name, f"needs a number or two separated by a comma, got {value!r}") from None
-    numbers = numbers * 2 if len(numbers) == 1 else numbers
-    if len(numbers) != 2:
-        raise _bad(name, f"needs 1 or 2 values (one per joint), got {len(numbers)}")
+        raise _bad(name, f"needs a number, or one per joint separated by commas, got "
+                         f"{value!r}") from None
     if not all(math.isfinite(v) and v >= 0 for v in numbers):
         raise _bad(name, f"must be finite and non-negative, got {value!r}")
     return numbers
@@ -95,7 +92,8 @@ def gain_variation(ctx: click.Context | None, param: click.Parameter | None,
         raise _bad("--gain-variation", str(error)) from None
 
 
-def delay_spec(ctx: click.Context | None, param: click.Parameter | None, value: str) -> str:
+def delay_spec(ctx: click.Context | None, param: click.Parameter | None,
+               value: str | None) -> str | None:
     """Option callback: a delay spec that :func:`~teleopkit.delays.parse_delay` reads.
 
     Parameters
@@ -104,16 +102,18 @@ def delay_spec(ctx: click.Context | None, param: click.Parameter | None, value: 
         Unused.
     param : click.Parameter or None
         The option.
-    value : str
-        The spec.
+    value : str, optional
+        The spec (None: the setup's network).
 
     Returns
     -------
-    str
+    str or None
         The spec, checked (traces are read once here).
     """
     from teleopkit.delays.spec import parse_delay
 
+    if value is None:
+        return None
     try:
         parse_delay(value)
     except ValueError as error:
@@ -260,6 +260,52 @@ def certificate_option(function: Any) -> Any:
              "closed form on K_r in [1, 50], B_r in [1, 150], T* = 1 s].")(function)
 
 
+def read_setup(ctx: click.Context | None, param: click.Parameter | None,
+               value: Path | None) -> Setup:
+    """Option callback of ``--setup FILE``: the setup it describes, the paper's by default.
+
+    Parameters
+    ----------
+    ctx, param
+        Click's context and parameter (unused).
+    value : Path, optional
+        A setup file (YAML or JSON).
+
+    Returns
+    -------
+    Setup
+        The setup; an unreadable or malformed file is one line naming the key path.
+    """
+    from teleopkit.setup import Setup, SetupError
+
+    if value is None:
+        return Setup.paper()
+    try:
+        return Setup.from_file(value)
+    except SetupError as error:
+        raise _bad("--setup", str(error)) from None
+
+
+def setup_option(function: Any) -> Any:
+    """The ``--setup FILE`` option every command takes.
+
+    Parameters
+    ----------
+    function : callable
+        The click command (or already decorated function) to add the option to.
+
+    Returns
+    -------
+    callable
+        ``function`` with the option attached (its value a :class:`~teleopkit.setup.Setup`).
+    """
+    return click.option(
+        "--setup", "setup", type=click.Path(dir_okay=False, path_type=Path), default=None,
+        callback=read_setup,
+        help="Setup file (YAML: plant, network, operator, start; see teleopkit setup) "
+             "[default: the paper's].")(function)
+
+
 def single_thread() -> None:
     """One torch thread: the second core belongs to the simulator or to other work."""
     import torch
@@ -267,52 +313,17 @@ def single_thread() -> None:
     torch.set_num_threads(1)
 
 
-class _StatusLine(logging.Handler):
-    """Progress records as one status line on a terminal, rewritten in place."""
-
-    def __init__(self, stream: TextIO) -> None:
-        super().__init__(logging.INFO)
-        self.stream = stream
-        self.start = time.monotonic()
-
-    def emit(self, record: logging.LogRecord) -> None:
-        elapsed = time.monotonic() - self.start
-        text = f"[{elapsed:6.1f} s] {record.getMessage()}"
-        self.stream.write(f"\r\033[K{text[:shutil.get_terminal_size().columns - 1]}")
-        self.stream.flush()
-
-    def close(self) -> None:
-        self.stream.write("\r\033[K")
-        self.stream.flush()
-        super().close()
-
-
-@contextlib.contextmanager
-def progress(enabled: bool, logger: str = "teleopkit.certification") -> Iterator[None]:
-    """Show the progress a command's library logs (cells solved, margin bracket) on stderr.
+def progress(enabled: bool) -> AbstractContextManager[None]:
+    """Show the library's progress (:mod:`teleopkit.progress`) while a command runs.
 
     Parameters
     ----------
     enabled : bool
-        Whether to show it (a terminal only: redirected output stays clean).
-    logger : str
-        The logger whose records are shown.
+        Whether to show it (``--progress``): on a terminal only, redirected output stays clean.
 
-    Yields
-    ------
-    None
-        While the command runs.
+    Returns
+    -------
+    contextlib.AbstractContextManager
+        The block that shows it.
     """
-    if not (enabled and sys.stderr.isatty()):
-        yield
-        return
-    handler, log = _StatusLine(sys.stderr), logging.getLogger(logger)
-    previous = log.level
-    log.addHandler(handler)
-    log.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        log.removeHandler(handler)
-        log.setLevel(previous)
-        handler.close()
+    return show_progress(None if enabled else False)

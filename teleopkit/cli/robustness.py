@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
-from teleopkit.cli.options import check_output, gain_variation
+from teleopkit.cli.options import check_output, gain_variation, setup_option
+
+if TYPE_CHECKING:
+    from teleopkit.setup import Setup
 
 __all__ = ["campaign_command", "falsify_command"]
 
@@ -86,10 +90,11 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
 @click.command("falsify")
 @click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
 @click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
-@click.option("--tl-max", type=click.FloatRange(min=0, min_open=True), default=1.0,
-              show_default=True, help="Forward delay bound T_l* [s].")
-@click.option("--tr-max", type=click.FloatRange(min=0, min_open=True), default=1.0,
-              show_default=True, help="Backward delay bound T_r* [s].")
+@click.option("--tl-max", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Forward delay bound T_l* [s] [default: the setup's network.forward.max].")
+@click.option("--tr-max", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Backward delay bound T_r* [s] [default: the setup's "
+                   "network.backward.max].")
 @click.option("--method", type=click.Choice(["nuno", "lmi"]), default="nuno", show_default=True,
               help="Certificate whose set is searched (lmi: minutes for two joints).")
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
@@ -117,14 +122,17 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
               help="Seed of the search.")
 @click.option("--out", type=click.Path(path_type=Path), default=None,
               help="CSV file for the worst run's trajectory.")
-def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, method: str,
-                    variation: object, switch_gains: bool | None, delays: str, objective: str,
-                    search_method: str, budget: int, population: int, duration: float,
-                    seed: int, out: Path | None) -> int:
-    """Search the worst delays and gains in a certified set (exit 1: diverged or over its bound)."""
+@setup_option
+def falsify_command(kr_range: str, br_range: str, tl_max: float | None, tr_max: float | None,
+                    method: str, variation: object, switch_gains: bool | None, delays: str,
+                    objective: str, search_method: str, budget: int, population: int,
+                    duration: float, seed: int, out: Path | None, setup: Setup) -> int:
+    """Search the worst delays and gains in a certified set (exit 1: diverged or over its bound).
+
+    The set is certified for the setup's plant (--setup; the paper's by default).
+    """
     from teleopkit.certification import certify_gains
     from teleopkit.certification.gain_sets import GainBox, parse_range
-    from teleopkit.model.params import paper_setup
     from teleopkit.robustness.adversary import SearchSpace
     from teleopkit.robustness.search import search
 
@@ -133,9 +141,12 @@ def falsify_command(kr_range: str, br_range: str, tl_max: float, tr_max: float, 
                                  f"{population} (--population)", param_hint="'--budget'")
     if out is not None:
         check_output(out, "--out", (".csv",))
-    params = paper_setup()
-    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"))
-    certificate = certify_gains(params, box, tl_max, tr_max, method, variation)
+    params = setup.params
+    box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"),
+                          setup.n_joints)
+    forward, backward = setup.network.bounds
+    certificate = certify_gains(params, box, forward if tl_max is None else tl_max,
+                                backward if tr_max is None else tr_max, method, variation)
     space = SearchSpace(params, certificate, switch_gains, delays, duration=duration)
     result = search(space, objective, search_method, budget,  # type: ignore[arg-type]
                     population, seed)

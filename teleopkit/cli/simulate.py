@@ -1,14 +1,25 @@
-"""``teleopkit simulate``: one run of the paper's teleoperator, as CSV and a figure."""
+"""``teleopkit simulate``: one run of a setup's teleoperator, as CSV and a figure."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 
-from teleopkit.cli.options import IMAGE_SUFFIXES, check_disk, check_output, delay_spec, gains
+from teleopkit.cli.options import (
+    IMAGE_SUFFIXES,
+    check_disk,
+    check_output,
+    delay_spec,
+    gains,
+    setup_option,
+)
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
+
+if TYPE_CHECKING:
+    from teleopkit.setup import Setup
 
 __all__ = ["simulate_command"]
 
@@ -33,11 +44,12 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
               help="Remote damping gain B_r: one value or B1,B2.")
 @click.option("--duration", type=float, default=40.0, show_default=True, callback=_periods,
               help="Seconds (a whole number of 10 ms control periods).")
-@click.option("--delay", default="paper", show_default=True, callback=delay_spec,
+@click.option("--delay", default=None, callback=delay_spec,
               help="paper | constant:T | sine:MEAN:AMP:FREQ | switching:LOW:HIGH:DWELL | "
-                   "csv:PATH; times in seconds unless written with a unit (500ms).")
+                   "csv:PATH; times in seconds unless written with a unit (500ms) [default: "
+                   "the setup's network].")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Seed of the operator reference and the delay scales.")
+              help="Seed of what the setup draws: operator motion, delays, start.")
 @click.option("--dt", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DT,
               show_default=True,
               help="Integration step [s]; the default is within 2e-6 rad of a converged run at the "
@@ -46,9 +58,13 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
               help="CSV file for the trajectory.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
               help=f"Figure file ({', '.join(IMAGE_SUFFIXES)}) of the run, paper style.")
-def simulate_command(kr: list[float], br: list[float], duration: float, delay: str, seed: int,
-                     dt: float, out: Path, plot: Path | None) -> None:
-    """Simulate the paper's teleoperator with constant remote gains and write the run as CSV."""
+@setup_option
+def simulate_command(kr: list[float], br: list[float], duration: float, delay: str | None,
+                     seed: int, dt: float, out: Path, plot: Path | None, setup: Setup) -> None:
+    """Simulate a setup's teleoperator (the paper's by default) with constant remote gains.
+
+    The run is written as CSV (and a figure with --plot).
+    """
     from teleopkit.files import write_csv
     from teleopkit.sim.simulator import simulate_trajectory
 
@@ -56,32 +72,44 @@ def simulate_command(kr: list[float], br: list[float], duration: float, delay: s
     if plot is not None:
         check_output(plot, "--plot", IMAGE_SUFFIXES)
     check_disk(out, int(round(duration / CONTROL_PERIOD) + 1) * _CSV_ROW_BYTES, "--out")
-    trajectory = simulate_trajectory(np.array(kr + br), duration=duration, delay=delay,
-                                     seed=seed, dt=dt)
+    n = setup.n_joints
+    action = np.array([*_per_joint(kr, n, "--kr"), *_per_joint(br, n, "--br")])
+    trajectory = simulate_trajectory(action, duration=duration, delay=delay, seed=seed, dt=dt,
+                                     setup=setup)
     write_csv(out, trajectory.columns())
     if plot is not None:
         from teleopkit.plots import save_run_figure
 
-        scaled = " (the paper's profile scaled by this seed's delay scales)" if delay == "paper" \
+        spec = delay or ", ".join(setup.network.forward.profiles)
+        scaled = " (the paper's profile scaled by this seed's delay scales)" if spec == "paper" \
             else ""
         save_run_figure(trajectory.to_frame(), plot,
-                        title=f"K_r = {kr}, B_r = {br}, delay {delay}{scaled}")
+                        title=f"K_r = {kr}, B_r = {br}, delay {spec}{scaled}")
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
     click.echo(f"wrote {len(trajectory.t)} rows to {out}; RMS tracking error {rms:.4g} rad")
-    _warn_beyond_margin(np.array(kr + br), float(trajectory.delays.max()))
+    _warn_beyond_margin(setup, action, float(trajectory.delays.max()))
 
 
-def _warn_beyond_margin(gains: np.ndarray, longest: float) -> None:
+def _per_joint(values: list[float], n: int, option: str) -> list[float]:
+    """One gain per joint: a single value repeated, or ``n`` values."""
+    if len(values) == 1:
+        return values * n
+    if len(values) != n:
+        raise click.BadParameter(f"give one value or {n} (one per joint), got {len(values)}",
+                                 param_hint=f"'{option}'")
+    return values
+
+
+def _warn_beyond_margin(setup: Setup, gains: np.ndarray, longest: float) -> None:
     """One line on standard error when the run's delays exceed what its gains are certified for.
 
     ``simulate`` runs any gains (it is a simulator, not a safety layer); ``train``, ``evaluate``
     and ``campaign`` refuse a certificate whose delay bound the delays can exceed.
     """
     from teleopkit.certification.nuno.condition import nuno_joint_margins
-    from teleopkit.model.params import paper_setup
 
-    margin = float(nuno_joint_margins(paper_setup(), gains).min())
+    margin = float(nuno_joint_margins(setup.params, gains).min())
     if longest > margin:
         click.echo(f"warning: the delays reached {longest:.4g} s; these gains are certified "
                    f"(closed form, constant gains) for delays up to {margin:.4g} s only, so this "

@@ -6,7 +6,7 @@ import json
 import sys
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 from click.core import ParameterSource
@@ -17,12 +17,15 @@ from teleopkit.cli.options import (
     delay_spec,
     gain_variation,
     read_certificate,
+    setup_option,
     single_thread,
 )
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.training import TrainConfig
+    from teleopkit.setup import Setup
 
 __all__ = ["evaluate_command", "reproduce_command", "train_command"]
 
@@ -43,13 +46,18 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
                    "(--steps may change the length).")
 @click.option("--gain-variation", "variation", default=None, callback=gain_variation,
               help="Gain class to train under, on the closed form's certificate of the default "
-                   "box (K_r in [1, 50], B_r in [1, 150], T* = 1 s) [default: the recipe's "
-                   "covering class, teleopkit.rl.training.COVERING_CLASS].")
+                   "box (K_r in [1, 50], B_r in [1, 150]) for the delays the setup's network "
+                   "reaches [default: the recipe's covering class, "
+                   "teleopkit.rl.training.COVERING_CLASS].")
 @certificate_option
+@setup_option
 @click.pass_context
 def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Path, resume: bool,
-                  variation: object, certificate: Path | None) -> None:
+                  variation: object, certificate: Path | None, setup: Setup) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
+
+    Episodes draw their scenarios from the setup (--setup; the paper's by default): its
+    plant, the delays of each direction of its network, its operator motions and starts.
 
     By default it trains under a class whose certificate covers every schedule the tuner plays
     (the certificate is recorded in the policy files, and evaluate uses it). The other settings
@@ -72,7 +80,8 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
         raise click.BadParameter(f"{out / CHECKPOINT} exists; pass --resume to continue it or "
                                  "choose another directory", param_hint="'--out'")
     check_unlocked(out / LOCK, str(out))  # before anything is printed
-    chosen = _training_certificate(out, resume, variation, certificate)
+    env_config = FlexTeleopConfig(setup)
+    chosen = _training_certificate(out, resume, variation, certificate, env_config)
     recipe = _training_config(ctx, out, resume, steps, envs, seed)
     per_round = recipe.num_envs * FlexTeleopConfig().max_steps
     if recipe.total_steps % per_round:
@@ -84,7 +93,7 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     click.echo(f"training under {chosen.gain_variation} ({chosen.variation.describe()}) on the "
                "certified set of the box " + _box_text(chosen), err=True)
     single_thread()
-    result = train(recipe, out, resume=resume, env_config=FlexTeleopConfig(certificate=chosen),
+    result = train(recipe, out, resume=resume, env_config=replace(env_config, certificate=chosen),
                    progress=sys.stderr.isatty())
     row = result.log.iloc[-1]
     click.echo(f"trained {int(row['step'])} steps under {chosen.gain_variation}; best "
@@ -102,7 +111,7 @@ def _box_text(certificate: GainCertificate) -> str:
 
 
 def _training_certificate(out: Path, resume: bool, variation: object,
-                          certificate: Path | None) -> GainCertificate:
+                          certificate: Path | None, config: FlexTeleopConfig) -> GainCertificate:
     """The certificate to train under: the run's recorded one on resume, else the one asked for.
 
     A resumed run keeps its certificate; another one asked for on resume is refused by the
@@ -110,26 +119,30 @@ def _training_certificate(out: Path, resume: bool, variation: object,
     """
     from teleopkit.certification.certifier import default_certificate
     from teleopkit.rl.training import CERTIFICATE, COVERING_CLASS
+
+    bounds = config.setup.network.reached_bounds
     from teleopkit.safety.factory import layer_for
 
     if certificate is not None:
         chosen = read_certificate(certificate)
     elif variation is not None or not (resume and (out / CERTIFICATE).is_file()):
-        chosen = default_certificate(variation=variation or COVERING_CLASS)  # type: ignore
+        chosen = default_certificate(config.params, bounds,
+                                     variation or COVERING_CLASS)  # type: ignore[arg-type]
     else:
         chosen = read_certificate(out / CERTIFICATE)
-    _check_for_paper_plant(chosen)
+    _check_certificate(chosen, config)
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen
 
 
-def _check_for_paper_plant(certificate: GainCertificate) -> None:
-    """Refuse (one line) a certificate for another plant or delays the paper's can exceed."""
-    from teleopkit.model.params import paper_setup
-    from teleopkit.sim.scenarios import PAPER_DELAY_BOUND, PAPER_DELAY_FLOOR
-
-    certificate.check(paper_setup(), PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
-                      (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
+def _check_certificate(certificate: GainCertificate, config: FlexTeleopConfig) -> None:
+    """Refuse (one line) a certificate for another plant or delays the setup's can exceed."""
+    network = config.setup.network
+    try:
+        certificate.check(config.params, *network.reached_bounds, network.reached_floors)
+    except ValueError as error:
+        raise click.BadParameter(f"{error} (the setup's plant and network)",
+                                 param_hint="'--certificate'") from None
 
 
 def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, envs: int,
@@ -162,17 +175,40 @@ def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, en
     return TrainConfig(total_steps=steps, num_envs=envs, seed=seed, learning_starts=warm_up)
 
 
+class _PolicyFile(click.Path):
+    """A policy file, or the name of a shipped policy (teleopkit.rl.policy.SHIPPED_POLICIES)."""
+
+    def __init__(self) -> None:
+        super().__init__(exists=True, dir_okay=False, path_type=Path)
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        """A path as click checks it; a bare name (no directory, no suffix) as a policy name."""
+        from teleopkit.rl.policy import resolve_policy
+
+        if Path(value).name != str(value) or Path(value).suffix:
+            return super().convert(value, param, ctx)
+        try:
+            return resolve_policy(str(value))
+        except ValueError as error:
+            self.fail(str(error), param, ctx)
+
+
 @click.command("evaluate")
-@click.option("--policy", "policy_files", required=True, multiple=True,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Policy file (policy.npz); repeat for several training seeds of one recipe.")
+@click.option("--policy", "policy_files", required=True, multiple=True, type=_PolicyFile(),
+              metavar="FILE|NAME",
+              help="Policy file (policy.npz), or a shipped policy: covered (the tuner trained "
+                   "under tank:3, whose certificate covers every schedule it plays) or paper "
+                   "(the paper's tuner, trained under the frozen class); repeat for several "
+                   "training seeds of one recipe.")
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios.")
 @click.option("--seed", type=click.IntRange(min=0), default=7_777, show_default=True,
               help="Seed of the held-out scenarios (teleopkit.rl.evaluation.EVAL_SEED).")
-@click.option("--delay", default="paper", show_default=True, callback=delay_spec,
-              help="Delays of both channels: paper | constant:T | sine:MEAN:AMP:FREQ | "
-                   "switching:LO:HI:DWELL | csv:PATH (shapes training never saw).")
+@click.option("--delay", default=None, callback=delay_spec,
+              help="Delays of both channels in place of the setup's network: paper | "
+                   "constant:T | sine:MEAN:AMP:FREQ | switching:LO:HI:DWELL | csv:PATH (shapes "
+                   "training never saw).")
 @click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=40.0,
               show_default=True, help="Episode length [s].")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/evaluate",
@@ -181,25 +217,28 @@ def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, en
               help="Gain certificate (teleopkit certify --json) to run the policies under; it "
                    "must cover the class they were trained under [default: the certificate "
                    "recorded in the first policy file].")
-def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, delay: str,
-                     duration: float, out: Path, certificate: Path | None) -> int:
+@setup_option
+def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
+                     delay: str | None, duration: float, out: Path, certificate: Path | None,
+                     setup: Setup) -> int:
     """Compare TD3 policies with the best static gains and the other comparators.
 
-    Every row runs on the same held-out scenarios; the reference row "best static" is the best
-    constant gains of the frozen class, and the comparators of the policies' own class (best
-    static gains, the tuned semi-active damping law, the tuner's open-loop mean schedule) are
-    reused from the policy file when it stores them for this certificate, else searched (a few
-    minutes).
+    Every row runs on the same held-out scenarios drawn from the setup; the reference row
+    "best static" is the best constant gains of the frozen class on the certificate's box,
+    and the comparators of the policies' own class (best static gains, the tuned semi-active
+    damping law, the tuner's open-loop mean schedule) are searched for this setup and
+    certificate (a few minutes; reused from the policy file or the cache when they were
+    searched for the same question).
     """
     from teleopkit.rl.comparison import (
         REFERENCE,
-        Comparators,
         check_covers,
+        comparators_for,
         compare,
+        evaluation_config,
         policy_certificate,
         report_preamble,
     )
-    from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.evaluation import save_report, to_markdown
     from teleopkit.rl.policy import GainPolicy
 
@@ -217,19 +256,23 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
             check_covers(chosen, policy)
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
-    _check_for_paper_plant(chosen)
-    comparators = Comparators.stored(policies[0], chosen)
-    if comparators is None:
-        click.echo(f"finding the comparators of {chosen.gain_variation} (best static gains, and "
-                   "for a class with switching the semi-active law and the open-loop schedule; "
-                   "a few minutes) ...", err=True)
-        comparators = Comparators.find(policies[0], chosen,
-                                       FlexTeleopConfig(certificate=chosen,
-                                                        episode_length=duration))
-    per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators)
+    config = evaluation_config(chosen, setup, delay, duration)
+    _check_certificate(chosen, config)
+
+    def searching() -> None:
+        click.echo(f"finding the comparators of {chosen.gain_variation} for setup "
+                   f"{config.setup.fingerprint} (best static gains, and for a class with "
+                   "switching the semi-active law and the open-loop schedule; a few minutes) "
+                   "...", err=True)
+
+    comparators = comparators_for(policies[0], chosen, config, on_search=searching)
+    per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
+                           setup=setup)
     tuner = f"TD3 ({chosen.gain_variation})"
-    preamble = report_preamble(comparators, scenarios, seed, delay, tuner, len(policies),
-                               duration)
+    delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles
+                                              + config.setup.network.backward.profiles))
+    preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(policies),
+                               duration, setup=config.setup)
     summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner)
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
     unsafe = int(summary["unsafe_actions"].sum())
@@ -242,8 +285,13 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int, 
               show_default=True, help="Directory for the figures (PNG) and the comparison table.")
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios of the comparison table.")
-def reproduce_command(out: Path, scenarios: int) -> int:
+@setup_option
+def reproduce_command(out: Path, scenarios: int, setup: Setup) -> int:
     """Paper figures and comparison table from the shipped pretrained policies (no training).
+
+    With --setup, the scenarios are drawn from that setup (another operator, start or network
+    of the paper's plant; the shipped tuners are certified for the paper's plant only) and
+    every comparator is searched for it.
 
     The table leads with the shipped tuner whose certificate covers what it does with the
     gains, beside the best static gains of the frozen class (the reference), its own class's
@@ -256,7 +304,7 @@ def reproduce_command(out: Path, scenarios: int) -> int:
     from teleopkit.rl.reproduction import reproduce
 
     check_output_dir(out, "--out")
-    result = reproduce(out, scenarios)
+    result = reproduce(out, scenarios, setup=setup)
     click.echo(to_markdown(result.summary, baseline=REFERENCE), nl=False)
     unsafe = int(result.summary["unsafe_actions"].sum())
     click.echo(f"wrote {len(result.figures)} figures and the table to {out}; unsafe actions: "

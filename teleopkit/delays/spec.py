@@ -18,7 +18,7 @@ from teleopkit.delays.profiles import (
 )
 from teleopkit.delays.units import seconds
 
-__all__ = ["check_duration", "check_trace_ends", "parse_delay"]
+__all__ = ["check_duration", "check_trace_ends", "delay_pair", "parse_delay"]
 
 
 _SPECS = "paper, constant:T, sine:MEAN:AMP:FREQ, switching:LOW:HIGH:DWELL or csv:PATH"
@@ -132,3 +132,37 @@ def check_trace_ends(profiles: tuple[DelayProfile, DelayProfile], duration: floa
     if ends and min(ends) < duration:
         raise ValueError(f"the delay trace ends at {min(ends):g} s, before the {duration:g} s "
                          "run does: record a longer trace or shorten the run")
+
+
+def delay_pair(delay: object, rng: np.random.Generator) -> tuple[DelayProfile, DelayProfile]:
+    """The forward and backward profiles a ``delay`` argument names.
+
+    Parameters
+    ----------
+    delay : str, float or (DelayProfile, DelayProfile)
+        A spec for :func:`parse_delay`, a constant delay in seconds, or the two profiles.
+    rng : numpy.random.Generator
+        Source of a spec's random parameters.
+
+    Returns
+    -------
+    tuple of DelayProfile
+        Forward and backward profiles.
+
+    Raises
+    ------
+    ValueError
+        One line saying what ``delay`` should be.
+    """
+    if isinstance(delay, str):
+        return parse_delay(delay, rng)
+    if isinstance(delay, int | float) and not isinstance(delay, bool):
+        return ConstantDelay(float(delay)), ConstantDelay(float(delay))
+    if isinstance(delay, tuple | list):
+        if len(delay) == 2 and all(callable(getattr(p, "sample", None)) for p in delay):
+            return delay[0], delay[1]
+        got = f"{len(delay)} item(s), not two delay profiles"
+    else:
+        got = repr(delay)
+    raise ValueError("delay must be a spec string, a constant in seconds or a pair of delay "
+                     f"profiles (forward, backward), got {got}")

@@ -19,18 +19,19 @@ environment (see ``tests/rl/test_rl_evaluation.py``), at a fraction of the cost.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from teleopkit.certification.certifier import default_certificate
-from teleopkit.delays.profiles import FourierDelay
+from teleopkit.progress import counting, reports_progress
 from teleopkit.rl.controllers import SemiActiveDamping
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
-from teleopkit.sim.scenarios import Scenario, paper_scenarios
+from teleopkit.setup import Setup
+from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
 
 __all__ = [
@@ -43,6 +44,8 @@ __all__ = [
     "fixed_gains",
     "static_cost",
 ]
+
+_log = logging.getLogger(__name__)
 
 FIXED_GAINS = (10.0, 30.0)
 """The paper's fixed remote gains ``(K_r, B_r)`` on every joint."""
@@ -75,17 +78,6 @@ def fixed_gains(kr: float = FIXED_GAINS[0], br: float = FIXED_GAINS[1],
     return np.concatenate([np.full(n_joints, float(kr)), np.full(n_joints, float(br))])
 
 
-def _repeat(scenario: Scenario, times: int) -> Scenario:
-    """The scenarios of ``scenario`` repeated ``times`` times (one copy per candidate)."""
-    def delay(profile: object) -> FourierDelay:
-        if not isinstance(profile, FourierDelay):
-            raise ValueError("static costs need the paper's Fourier delays")
-        return FourierDelay(np.tile(np.atleast_1d(profile.scale), times), profile.bound)
-
-    return Scenario(scenario.params, delay(scenario.forward), delay(scenario.backward),
-                    np.tile(scenario.reference_gains, (times, 1)))
-
-
 def static_cost(gains: np.ndarray, scenario: Scenario,
                 config: FlexTeleopConfig | None = None) -> np.ndarray:
     """The paper's cost of constant gains: minus the episode return, per candidate and scenario.
@@ -95,7 +87,7 @@ def static_cost(gains: np.ndarray, scenario: Scenario,
     gains : ndarray, shape (C, 2 n) or (2 n,)
         Candidate gains (applied as given: project them first).
     scenario : Scenario
-        ``S`` scenarios with the paper's Fourier delays.
+        ``S`` scenarios (any delays, operator motions and starts).
     config : FlexTeleopConfig, optional
         Episode length, periods, integration step and reward weights (defaults if omitted).
 
@@ -105,7 +97,7 @@ def static_cost(gains: np.ndarray, scenario: Scenario,
         ``sum_k alpha ||e_track||^2 + beta ||e_damp||^2 + gamma ||a||^2`` over the episode
         (``inf`` where the state leaves the environment's ``state_bound``).
     """
-    config = config if config is not None else FlexTeleopConfig(params=scenario.params)
+    config = config if config is not None else FlexTeleopConfig(Setup.from_params(scenario.params))
     gains = np.atleast_2d(np.asarray(gains, dtype=float))
     group = max(1, RUN_BATCH // scenario.batch)  # candidates per simulated batch
     return np.concatenate([_costs(gains[start:start + group], scenario, config)
@@ -115,7 +107,7 @@ def static_cost(gains: np.ndarray, scenario: Scenario,
 def _costs(gains: np.ndarray, scenario: Scenario, config: FlexTeleopConfig) -> np.ndarray:
     """:func:`static_cost` of a few candidates, simulated as one batch."""
     count, batch = gains.shape[0], scenario.batch
-    sim = Simulator(_repeat(scenario, count), config.dt, config.control_period)
+    sim = Simulator(scenario.repeat(count), config.dt, config.control_period)
     run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0))
     reward = config.weights.reward(run.e_track[1:], run.e_damp[1:], run.gains[1:])
     cost = -reward.sum(axis=0)
@@ -158,17 +150,19 @@ def _grid(layer: SafetyLayer, lower: np.ndarray, upper: np.ndarray, points: int)
     return np.unique(layer.project_set(raw).round(12), axis=0)
 
 
+@reports_progress
 def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
                       seed: int = BASELINE_SEED, grid_points: int = 8, max_evaluations: int = 200,
-                      config: FlexTeleopConfig | None = None) -> StaticGains:
-    """Best constant gains inside the safety layer's set for the paper's cost.
+                      config: FlexTeleopConfig | None = None,
+                      progress: bool | None = None) -> StaticGains:
+    """Best constant gains inside the safety layer's set for the paper's cost, for a setup.
 
     Parameters
     ----------
     layer : SafetyLayer, optional
         The set; the environment's default certificate if omitted.
     scenarios : int
-        Training scenarios (:func:`~teleopkit.sim.scenarios.paper_scenarios` of ``seed``).
+        Training scenarios, drawn from the setup of ``config`` with ``seed``.
     seed : int
         Seed of the training scenarios (keep it apart from evaluation seeds).
     grid_points : int
@@ -177,6 +171,9 @@ def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
         Budget of Nelder–Mead cost evaluations.
     config : FlexTeleopConfig, optional
         Environment settings (episode length, reward weights, ...).
+    progress : bool, optional
+        Show the search on standard error: by default on a terminal only; ``False`` never,
+        ``True`` always (:mod:`teleopkit.progress`).
 
     Returns
     -------
@@ -186,15 +183,17 @@ def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
     from scipy.optimize import minimize  # deferred: a 0.7 s import
 
     config = config if config is not None else FlexTeleopConfig()
-    certificate = config.certificate or default_certificate(config.params)
+    certificate = config.safety_certificate()
     if layer is None:
         layer = layer_for(certificate, config.control_period)
     box = certificate.box
-    scenario = paper_scenarios(seed, scenarios, config.params)
+    scenario = config.setup.scenarios(seed, scenarios)
     candidates = _grid(layer, box.lower, box.upper, grid_points)
+    _log.info("best static gains: simulating %d grid candidates", len(candidates))
     grid_costs = static_cost(candidates, scenario, config).mean(axis=1)
     start = candidates[int(np.argmin(grid_costs))]
 
+    @counting(_log, "best static gains", max_evaluations)
     def objective(x: np.ndarray) -> float:
         value = static_cost(layer.project_set(x), scenario, config).mean()
         return float(value) if math.isfinite(value) else 1e300
@@ -235,9 +234,11 @@ class SemiActiveGains:
     evaluations: int
 
 
+@reports_progress
 def best_semi_active(config: FlexTeleopConfig | None = None, scenarios: int = 16,
                      seed: int = BASELINE_SEED, start: np.ndarray | None = None,
-                     max_evaluations: int = 80) -> SemiActiveGains:
+                     max_evaluations: int = 80, progress: bool | None = None
+                     ) -> SemiActiveGains:
     """The hand-written semi-active damping law with its three numbers tuned for the paper's cost.
 
     Nelder–Mead over ``(K_r, B_low, B_high)`` of
@@ -251,7 +252,7 @@ def best_semi_active(config: FlexTeleopConfig | None = None, scenarios: int = 16
         Environment settings and certificate (a class that covers changing damping, for example
         ``scheduled:0`` or ``tank``, for the law to be covered).
     scenarios : int
-        Training scenarios (:func:`~teleopkit.sim.scenarios.paper_scenarios` of ``seed``).
+        Training scenarios, drawn from the setup of ``config`` with ``seed``.
     seed : int
         Their seed.
     start : ndarray, shape (2 n,), optional
@@ -259,6 +260,9 @@ def best_semi_active(config: FlexTeleopConfig | None = None, scenarios: int = 16
         stiffness of joint 1 and its damping as both levels; default the centre of the set.
     max_evaluations : int
         Budget of closed-loop runs.
+    progress : bool, optional
+        Show the search on standard error: by default on a terminal only; ``False`` never,
+        ``True`` always (:mod:`teleopkit.progress`).
 
     Returns
     -------
@@ -270,7 +274,7 @@ def best_semi_active(config: FlexTeleopConfig | None = None, scenarios: int = 16
     from teleopkit.rl.evaluation import rollout
 
     config = config if config is not None else FlexTeleopConfig()
-    certificate = config.certificate or default_certificate(config.params)
+    certificate = config.safety_certificate()
     box = certificate.box
     n = box.n_joints
     if start is None:
@@ -287,6 +291,7 @@ def best_semi_active(config: FlexTeleopConfig | None = None, scenarios: int = 16
             a, b = max(a, float(np.max(cone * shape * k / shape[0] + offset))), max(b, a)
         return SemiActiveDamping(float(k), float(min(a, b)), float(max(a, b)))
 
+    @counting(_log, "semi-active law", max_evaluations)
     def objective(x: np.ndarray) -> float:
         run = rollout(law(x), scenarios, seed, config)
         return float(-run.reward.sum(axis=0).mean())

@@ -4,9 +4,9 @@ A trained policy records the certificate it was trained under (:func:`policy_cer
 is evaluated under that certificate unless another one that covers its class is given
 (:func:`check_covers`). Beside it, on the same held-out scenarios:
 
-- ``best static``: the best constant gains of the frozen class on the default box, the
-  reference of every table (the toughest static comparator: the closed form proves its
-  per-joint ratios only for the shape of ``K_l``);
+- ``best static``: the best constant gains of the frozen class on the tuner certificate's box
+  and delay bounds, the reference of every table (the toughest static comparator: the closed
+  form proves its per-joint ratios only for the shape of ``K_l``);
 - ``best static (<class>)``: the best constant gains of the tuner's own class;
 - ``semi-active (<class>)``: the hand-written semi-active damping law, tuned
   (:func:`~teleopkit.rl.baselines.best_semi_active`), for a class that lets the damping switch;
@@ -14,25 +14,30 @@ is evaluated under that certificate unless another one that covers its class is 
   as a function of time alone (is it state feedback, or a schedule?);
 - ``fixed``: the paper's gains.
 
-Finding the comparators takes a few minutes of simulation (:meth:`Comparators.find`); they are
-stored in the policy's metadata for its certificate (:meth:`Comparators.stored`) and reused
-whenever that certificate is the one evaluated.
+Every comparator is searched for the setup being evaluated (plant, network, operator motions,
+starts: :class:`~teleopkit.setup.Setup`) on its training scenarios, never reused from another
+setup. Finding them takes a few minutes of simulation (:meth:`Comparators.find`); they are
+stored in the policy's metadata under their key, the setup's fingerprint and the certificate
+(:meth:`Comparators.stored`), and reused only for that setup and certificate.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import astuple, dataclass, replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from teleopkit.certification.certifier import default_certificate
+from teleopkit.certification.certifier import certify_gains, default_certificate
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.verification import load_certificate
-from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.progress import reports_progress
 from teleopkit.rl.baselines import (
     BASELINE_SEED,
     best_semi_active,
@@ -43,9 +48,12 @@ from teleopkit.rl.controllers import ConstantGains, GainSchedule, SemiActiveDamp
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate, rollout
 from teleopkit.rl.policy import GainPolicy
+from teleopkit.setup import Setup
 
-__all__ = ["REFERENCE", "Comparators", "check_covers", "compare", "policy_certificate",
-           "report_preamble"]
+__all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
+           "evaluation_config", "frozen_counterpart", "policy_certificate", "report_preamble"]
+
+_log = logging.getLogger(__name__)
 
 REFERENCE = "best static"
 """Name of the reference row: the best static gains of the frozen class."""
@@ -104,6 +112,30 @@ def check_covers(certificate: GainCertificate, policy: GainPolicy) -> None:
                          f"gives {expected}")
 
 
+def frozen_counterpart(certificate: GainCertificate, params: TeleoperatorParams
+                       ) -> GainCertificate:
+    """The frozen class's closed-form certificate of the same box and delay bounds.
+
+    The reference row's set: constant gains the closed form certifies inside the tuner's box.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        The tuner's certificate.
+    params : TeleoperatorParams
+        Its plant.
+
+    Returns
+    -------
+    GainCertificate
+        ``certificate`` itself if it is a closed-form certificate of the frozen class.
+    """
+    if certificate.gain_variation == "frozen" and certificate.method == "nuno":
+        return certificate
+    return certify_gains(params, certificate.box, *certificate.delay_bounds, method="nuno",
+                         variation="frozen")
+
+
 def _observation_size(certificate: GainCertificate) -> int:
     from teleopkit.safety.factory import layer_for
 
@@ -120,9 +152,10 @@ class Comparators:
         Gain class of the certificate they were found for (with ``fingerprint``, what they
         are reused for).
     fingerprint : str
-        The certificate's plant fingerprint and box, as text.
+        :meth:`key`: the setup's fingerprint, the certificate's plant fingerprint, box, class
+        and delay bounds, the episode length and the reward weights, as text.
     frozen_static : ndarray, shape (2 n,)
-        Best static gains of the frozen class on the default box (the reference).
+        Best static gains of the frozen class on the certificate's box (the reference).
     class_static : ndarray, shape (2 n,)
         Best static gains of the certificate's set.
     semi_active : tuple of float or None
@@ -141,21 +174,26 @@ class Comparators:
     schedule: np.ndarray | None
 
     @staticmethod
-    def key(certificate: GainCertificate) -> str:
-        """What identifies the certificate the comparators belong to.
+    def key(certificate: GainCertificate, config: FlexTeleopConfig) -> str:
+        """What identifies the question the comparators answer.
 
         Parameters
         ----------
         certificate : GainCertificate
-            A certificate.
+            The certificate the tuner runs under.
+        config : FlexTeleopConfig
+            The setup and episode settings they were searched for.
 
         Returns
         -------
         str
-            Its plant fingerprint, box, gain class and delay bounds, as JSON text.
+            The setup's fingerprint, the certificate's plant fingerprint, box, gain class and
+            delay bounds, the episode length and the reward weights, as JSON text.
         """
-        return json.dumps([certificate.plant.get("fingerprint"), certificate.box.to_dict(),
-                           certificate.gain_variation, list(certificate.delay_bounds)])
+        return json.dumps([config.setup.fingerprint, certificate.plant.get("fingerprint"),
+                           certificate.box.to_dict(), certificate.gain_variation,
+                           list(certificate.delay_bounds), config.episode_length,
+                           list(astuple(config.weights))])
 
     @classmethod
     def find(cls, policy: GainPolicy, certificate: GainCertificate,
@@ -177,17 +215,18 @@ class Comparators:
             The comparators.
         """
         config = replace(config or FlexTeleopConfig(), certificate=certificate)
-        frozen = replace(config, certificate=default_certificate(config.params))
+        frozen = replace(config, certificate=frozen_counterpart(certificate, config.params))
         reference = best_static_gains(config=frozen).gains
-        same = cls.key(certificate) == cls.key(frozen.certificate)  # type: ignore[arg-type]
+        same = frozen.certificate is certificate
         own = reference if same else best_static_gains(config=config).gains
         semi, schedule = None, None
         if certificate.variation.covers_changes:
             semi_law = best_semi_active(config, start=own).law
             semi = (semi_law.stiffness, semi_law.low, semi_law.high)
+            _log.info("open-loop schedule: running the tuner on 16 training scenarios")
             schedule = rollout(policy, 16, BASELINE_SEED, config).applied.mean(axis=1)
-        return cls(certificate.gain_variation, cls.key(certificate), reference, own, semi,
-                   schedule)
+        return cls(certificate.gain_variation, cls.key(certificate, config), reference, own,
+                   semi, schedule)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (for the policy's metadata)."""
@@ -220,8 +259,9 @@ class Comparators:
                    None if schedule is None else np.asarray(schedule, dtype=float))
 
     @classmethod
-    def stored(cls, policy: GainPolicy, certificate: GainCertificate) -> Comparators | None:
-        """The comparators stored with the policy for this certificate, if any.
+    def stored(cls, policy: GainPolicy, certificate: GainCertificate,
+               config: FlexTeleopConfig) -> Comparators | None:
+        """The comparators stored with the policy for this certificate and setup, if any.
 
         Parameters
         ----------
@@ -229,14 +269,16 @@ class Comparators:
             The tuner.
         certificate : GainCertificate
             The certificate it is evaluated under.
+        config : FlexTeleopConfig
+            The setup and episode settings it is evaluated on.
 
         Returns
         -------
         Comparators or None
-            The stored comparators, or None when none were stored for this certificate.
+            The stored comparators, or None when none were stored for this question.
         """
         data = policy.metadata.get("comparators")
-        if data is None or data.get("fingerprint") != cls.key(certificate):
+        if data is None or data.get("fingerprint") != cls.key(certificate, config):
             return None
         return cls.from_dict(data)
 
@@ -255,7 +297,8 @@ class Comparators:
             ``best static`` (frozen class), then the class's best static gains, semi-active
             law and open-loop schedule (where the class covers them), then ``fixed``.
         """
-        frozen = replace(config, certificate=default_certificate(config.params))
+        frozen = replace(config, certificate=frozen_counterpart(config.safety_certificate(),
+                                                                config.params))
         rows: dict[str, tuple[Controller, FlexTeleopConfig]] = {
             REFERENCE: (ConstantGains(self.frozen_static), frozen)}
         if self.certificate != "frozen":
@@ -269,11 +312,91 @@ class Comparators:
         return rows
 
 
+def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
+                      delay: str | None = None, duration: float = 40.0) -> FlexTeleopConfig:
+    """The settings a comparison runs under: the setup (its delays replaced if asked).
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        The tuner's certificate.
+    setup : Setup, optional
+        The setup; the paper's by default.
+    delay : str, optional
+        A delay spec for both directions in place of the setup's network.
+    duration : float
+        Episode length in seconds.
+
+    Returns
+    -------
+    FlexTeleopConfig
+        The settings.
+    """
+    setup = setup if setup is not None else Setup.paper()
+    if delay is not None:
+        setup = setup.with_delay(delay)
+    return FlexTeleopConfig(setup, certificate, episode_length=duration)
+
+
+def comparators_for(policy: GainPolicy, certificate: GainCertificate,
+                    config: FlexTeleopConfig, cache: bool = True,
+                    on_search: Callable[[], None] | None = None) -> Comparators:
+    """The comparators of a question: stored with the policy, cached, or searched now.
+
+    Searched comparators are cached on disk by their :meth:`Comparators.key` (the setup's
+    fingerprint among it) in the directory of
+    :func:`~teleopkit.certification.cache.cache_directory`.
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        The tuner.
+    certificate : GainCertificate
+        Its certificate.
+    config : FlexTeleopConfig
+        Setup and episode settings.
+    cache : bool
+        Whether to read and write the disk cache.
+    on_search : callable, optional
+        Called before a search (none stored or cached), for example to say it takes minutes.
+
+    Returns
+    -------
+    Comparators
+        Comparators searched for this setup and certificate.
+    """
+    from teleopkit.certification.cache import cache_directory
+
+    stored = Comparators.stored(policy, certificate, config)
+    if stored is not None:
+        return stored
+    key = Comparators.key(certificate, config)
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    path = cache_directory() / "comparators" / f"{digest}.json"
+    if cache and path.is_file():
+        data = json.loads(path.read_text())
+        if data.get("fingerprint") == key:
+            return Comparators.from_dict(data)
+    if on_search is not None:
+        on_search()
+    _log.info("finding the comparators of %s for setup %s (a few minutes)",
+              certificate.gain_variation, config.setup.fingerprint)
+    found = Comparators.find(policy, certificate, config)
+    if cache:
+        from teleopkit.files import atomic_write
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        text = json.dumps(found.to_dict())
+        atomic_write(path, lambda tmp: tmp.write_text(text))
+    return found
+
+
+@reports_progress
 def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVAL_SEED,
-            certificate: GainCertificate | None = None, delay: str = "paper",
+            certificate: GainCertificate | None = None, delay: str | None = None,
             duration: float = 40.0, comparators: Comparators | None = None,
             others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None,
-            params: TeleoperatorParams | None = None) -> pd.DataFrame:
+            setup: Setup | None = None, progress: bool | None = None) -> pd.DataFrame:
     """Per-scenario metrics of a tuner and its comparators on the same held-out scenarios.
 
     Parameters
@@ -287,18 +410,23 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     certificate : GainCertificate, optional
         The certificate to run the tuner under; default the one its first policy was trained
         under. It must cover that class (:func:`check_covers`).
-    delay : str
-        Delay profiles of the scenarios (:func:`~teleopkit.rl.evaluation.rollout`).
+    delay : str, optional
+        Delays of both directions in place of the setup's network (a delay spec, for example a
+        shape the tuner never saw); the comparators are searched with them.
     duration : float
         Episode length in seconds.
     comparators : Comparators, optional
-        Comparators to use; default those stored with the first policy (or found now).
+        Comparators to use; default those stored with the first policy for this setup and
+        certificate, else found now for them.
     others : mapping, optional
         More controllers by name, each with its settings (for example a tuner of another
         class).
-    params : TeleoperatorParams, optional
-        The teleoperator (the paper's by default), for example with another initial state: it
-        must be the plant the certificate records.
+    setup : Setup, optional
+        Plant, network, operator motions and starts of the scenarios (the paper's by default):
+        its plant must be the one the certificate records.
+    progress : bool, optional
+        Show which row runs (and the comparators' searches) on standard error: by default on a
+        terminal only; ``False`` never, ``True`` always (:mod:`teleopkit.progress`).
 
     Returns
     -------
@@ -311,15 +439,19 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     certificate = certificate if certificate is not None else policy_certificate(policies[0])
     for policy in policies:
         check_covers(certificate, policy)
-    config = FlexTeleopConfig(params=params or paper_setup(), certificate=certificate,
-                              episode_length=duration)
-    found = (comparators or Comparators.stored(policies[0], certificate)
-             or Comparators.find(policies[0], certificate, config))
+    config = evaluation_config(certificate, setup, delay, duration)
+    found = comparators or comparators_for(policies[0], certificate, config)
     rows = {f"TD3 ({certificate.gain_variation})": (list(policies), config),
             **found.controllers(config), **(others or {})}
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}
-    return evaluate(controllers, scenarios, seed, config, settings, delay)  # type: ignore
+    frames = []
+    for row, name in enumerate(controllers, 1):
+        _log.info("comparison: row %d of %d, %s on %d scenarios", row, len(controllers), name,
+                  scenarios)
+        frames.append(evaluate({name: controllers[name]}, scenarios, seed, config,  # type: ignore
+                               settings))
+    return pd.concat(frames, ignore_index=True)
 
 
 def _gains(values: np.ndarray) -> str:
@@ -330,7 +462,7 @@ def _gains(values: np.ndarray) -> str:
 
 def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: str,
                     tuner: str, policies: int = 1, duration: float = 40.0,
-                    others: Mapping[str, str] | None = None) -> str:
+                    others: Mapping[str, str] | None = None, setup: Setup | None = None) -> str:
     """The opening of ``summary.md``: what was compared, and what its words mean.
 
     Parameters
@@ -349,6 +481,8 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
         Episode length in seconds.
     others : mapping of str to str, optional
         More rows by name, with a sentence each.
+    setup : Setup, optional
+        The setup the scenarios were drawn from, described in a paragraph.
 
     Returns
     -------
@@ -358,11 +492,11 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
     lines = [
         "# Comparison of gain controllers",
         "",
-        f"Every row ran the same {scenarios} held-out scenarios (seed {seed}; operator reference "
-        f"gains and delay scales no training saw; delays: {delay}), {duration:g} s each, "
+        f"Every row ran the same {scenarios} held-out scenarios (seed {seed}; operator motions, "
+        f"delays and starts no training saw; delays: {delay}), {duration:g} s each, "
         f"every applied gain projected by the safety layer of the row's certificate. `{tuner}` "
         f"is the trained tuner ({policies} polic{'y' if policies == 1 else 'ies'}); "
-        f"`{REFERENCE}` the best constant gains of the frozen class on the default box "
+        f"`{REFERENCE}` the best constant gains of the frozen class on the certificate's box "
         f"({_gains(comparators.frozen_static)}), the reference of the last column; "
         f"`fixed` the paper's gains (K_r = 10, B_r = 30).",
     ]
@@ -374,6 +508,9 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
                       "while it shrinks at a constant stiffness, its three numbers tuned on "
                       f"training scenarios; `open-loop ({label})` the tuner's mean gain schedule "
                       "over 16 training scenarios, replayed as a function of time alone."]
+    if setup is not None:
+        lines += ["", "Setup (every comparator was searched for it, on training scenarios "
+                      f"drawn from it): {'; '.join(setup.describe())}."]
     for name, text in (others or {}).items():
         lines += ["", f"`{name}`: {text}"]
     lines += [

@@ -21,8 +21,9 @@ signal is the constant past ``q_l(0)``. Under a scheduled certificate (``schedul
 ``tank``) the safety layer keeps a budget or a tank, whose level is appended (``7 n + 1`` values)
 and reported in ``info["schedule"]``: the set of each step depends on it.
 
-Each episode draws a scenario with :func:`~teleopkit.sim.scenarios.paper_scenarios` from the
-environment's seeded generator (operator reference gains and delay scales). The time limit is a
+Each episode draws its scenarios from the environment's setup (:class:`~teleopkit.setup.Setup`;
+the paper's by default: operator reference gains and delay scales) with the environment's seeded
+generator: operator motions, delays of each direction and starts. The time limit is a
 truncation; a non-finite state or one leaving ``state_bound`` terminates with ``-failure_penalty``
 (which should never happen with certified gains).
 """
@@ -41,18 +42,14 @@ from gymnasium.vector.utils import batch_space
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.model.params import TeleoperatorParams
 from teleopkit.rl.registration import ENV_ID
 from teleopkit.rl.scoring import RewardWeights, observation, score
 from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
-from teleopkit.sim.scenarios import (
-    PAPER_DELAY_BOUND,
-    PAPER_DELAY_FLOOR,
-    Scenario,
-    paper_scenarios,
-)
+from teleopkit.setup import Setup
+from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
@@ -74,11 +71,13 @@ class FlexTeleopConfig:
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator (the paper's by default).
+    setup : Setup
+        Plant, network, operator motions and starts the episodes draw from (the paper's by
+        default).
     certificate : GainCertificate, optional
-        Certificate whose polytope the safety layer projects onto; it must be for ``params``.
-        Default: :func:`default_certificate` of ``params`` (closed form, ``T* = 1 s``).
+        Certificate whose polytope the safety layer projects onto; it must be for the setup's
+        plant and cover its delays. Default: :func:`default_certificate` of the plant (closed
+        form) for the network's delay bounds.
     episode_length : float
         Episode duration in seconds (truncation), rounded to whole control periods.
     control_period : float
@@ -96,7 +95,7 @@ class FlexTeleopConfig:
         ending an episode never pays.
     """
 
-    params: TeleoperatorParams = field(default_factory=paper_setup)
+    setup: Setup = field(default_factory=Setup.paper)
     certificate: GainCertificate | None = None
     episode_length: float = 40.0
     control_period: float = CONTROL_PERIOD
@@ -117,6 +116,24 @@ class FlexTeleopConfig:
     def max_steps(self) -> int:
         """Control periods per episode."""
         return round(self.episode_length / self.control_period)
+
+    @property
+    def params(self) -> TeleoperatorParams:
+        """The setup's teleoperator."""
+        return self.setup.params
+
+    def safety_certificate(self) -> GainCertificate:
+        """The certificate the safety layer projects onto.
+
+        Returns
+        -------
+        GainCertificate
+            ``certificate``, or the closed form's on the default box for the setup's plant and
+            the delays its network reaches.
+        """
+        if self.certificate is not None:
+            return self.certificate
+        return default_certificate(self.params, self.setup.network.reached_bounds)
 
 
 def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:
@@ -168,10 +185,9 @@ class TeleopBatch:
     def __init__(self, config: FlexTeleopConfig, batch: int) -> None:
         self.config = config
         self.batch = batch
-        self.certificate = (config.certificate if config.certificate is not None
-                            else default_certificate(config.params))
-        self.certificate.check(config.params, PAPER_DELAY_BOUND, PAPER_DELAY_BOUND,
-                               (PAPER_DELAY_FLOOR, PAPER_DELAY_FLOOR))
+        network = config.setup.network
+        self.certificate = config.safety_certificate()
+        self.certificate.check(config.params, *network.reached_bounds, network.reached_floors)
         self.loop = CertifiedLoop(layer_for(self.certificate, config.control_period))
         self.run_time_columns = self.layer.run_time_state(1).shape[1]
         self.steps = 0
@@ -187,19 +203,19 @@ class TeleopBatch:
         return self.loop.unsafe_actions
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
-        """Start on ``B`` scenarios drawn with the paper's randomisation; first observations.
+        """Start on ``B`` scenarios drawn from the setup; first observations.
 
         Parameters
         ----------
         rng : numpy.random.Generator
-            Source of the operator reference gains and delay scales.
+            Source of the operator motions, delays and starts.
 
         Returns
         -------
         ndarray, shape (B, 7 n)
             Observations at ``t = 0``.
         """
-        return self.start(paper_scenarios(rng, self.batch, self.config.params))
+        return self.start(self.config.setup.scenarios(rng, self.batch))
 
     def start(self, scenario: Scenario) -> np.ndarray:
         """Start an episode on ``scenario`` and return the first observations.

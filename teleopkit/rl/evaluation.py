@@ -3,8 +3,9 @@
 Every controller is run in closed loop through the core of the environments
 (:class:`~teleopkit.rl.env.TeleopBatch`), so every applied action goes through the same safety
 layer and is counted if it lies outside the certified set (``unsafe_actions``, which must be 0).
-The scenarios are drawn by :func:`~teleopkit.sim.scenarios.paper_scenarios` from the evaluation
-seed: operator reference gains and delay scales that training never saw (training draws its
+The scenarios are drawn from the environment's setup (:class:`~teleopkit.setup.Setup`, the
+paper's by default) with the evaluation seed: operator motions, delays and starts that training
+never saw (training draws its
 scenarios from generators seeded by :class:`~teleopkit.rl.training.TrainConfig`, the static-gain
 search from :data:`~teleopkit.rl.baselines.BASELINE_SEED`).
 
@@ -29,9 +30,10 @@ import pandas as pd
 from gymnasium.utils import seeding
 
 from teleopkit.certification.gain_classes import parse_gain_variation
-from teleopkit.delays.spec import check_trace_ends, parse_delay
+from teleopkit.delays.spec import check_trace_ends
 from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
-from teleopkit.sim.scenarios import Scenario, paper_scenarios
+from teleopkit.setup import Setup
+from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.trajectory import Trajectory
 
 __all__ = [
@@ -151,7 +153,7 @@ class Rollout:
 
 
 def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
-            config: FlexTeleopConfig | None = None, delay: str = "paper") -> Rollout:
+            config: FlexTeleopConfig | None = None, delay: str | None = None) -> Rollout:
     """Run a controller on ``scenarios`` held-out scenarios for one episode.
 
     The scenarios are those :class:`~teleopkit.rl.env.FlexTeleopVectorEnv` draws after
@@ -166,11 +168,11 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
     seed : int
         Seed of the scenario draws (the same seed gives the same scenarios to every controller).
     config : FlexTeleopConfig, optional
-        Environment settings.
-    delay : str
-        Delay profiles of both channels (:func:`~teleopkit.delays.spec.parse_delay`):
-        ``"paper"`` as in training, or a shape the controller never saw (for example
-        ``"switching:0:1:50ms"``); the operator reference gains are the same either way.
+        Environment settings and the setup the scenarios are drawn from.
+    delay : str, optional
+        Delay profiles of both channels in place of the setup's network
+        (:func:`~teleopkit.delays.spec.parse_delay`), for example a shape the controller never
+        saw (``"switching:0:1:50ms"``); the operator motions are the same either way.
 
     Returns
     -------
@@ -179,11 +181,9 @@ def rollout(controller: Controller, scenarios: int = 32, seed: int = EVAL_SEED,
     """
     config = config if config is not None else FlexTeleopConfig()
     rng = seeding.np_random(seed)[0]
-    scenario = paper_scenarios(rng, scenarios, config.params)  # what TeleopBatch.draw draws
-    if delay != "paper":
-        forward, backward = parse_delay(delay, rng)
-        check_trace_ends((forward, backward), config.episode_length)
-        scenario = replace(scenario, forward=forward, backward=backward)
+    # what TeleopBatch.draw draws, with the delays replaced if asked
+    scenario = config.setup.scenarios(rng, scenarios, None if delay == "paper" else delay)
+    check_trace_ends((scenario.forward, scenario.backward), config.episode_length)
     return closed_loop(controller, scenario, config)
 
 
@@ -210,8 +210,9 @@ def closed_loop(controller: Controller, scenario: Scenario,
     RuntimeError
         If a run leaves the state bound (a model failure under certified gains).
     """
-    config = replace(config if config is not None else FlexTeleopConfig(),
-                     params=scenario.params)
+    config = config if config is not None else FlexTeleopConfig()
+    if scenario.params != config.params:
+        config = replace(config, setup=Setup.from_params(scenario.params, config.setup.network))
     core = TeleopBatch(config, scenario.batch)
     reset = getattr(controller, "reset", None)
     if callable(reset):
@@ -241,7 +242,7 @@ def closed_loop(controller: Controller, scenario: Scenario,
 def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scenarios: int = 32,
              seed: int = EVAL_SEED, config: FlexTeleopConfig | None = None,
              configs: Mapping[str, FlexTeleopConfig] | None = None,
-             delay: str = "paper") -> pd.DataFrame:
+             delay: str | None = None) -> pd.DataFrame:
     """Per-scenario metrics of every controller on the same held-out scenarios.
 
     Parameters
@@ -257,8 +258,8 @@ def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scena
     configs : mapping of str to FlexTeleopConfig, optional
         Settings of particular controllers (for example another certificate), by name;
         ``config`` for the others.
-    delay : str
-        Delay profiles of the scenarios (:func:`rollout`).
+    delay : str, optional
+        Delay profiles in place of the setup's network (:func:`rollout`).
 
     Returns
     -------

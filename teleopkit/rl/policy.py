@@ -1,14 +1,17 @@
 """A trained actor as plain numpy: fast single-sample inference, small ``.npz`` files, no torch.
 
-:class:`GainPolicy` is what deployment, evaluation and campaigns run; :meth:`GainPolicy.pretrained`
-loads the policy shipped in ``teleopkit/data``.
+:class:`GainPolicy` is what deployment, evaluation and campaigns run. The policies shipped in
+``teleopkit/data`` have names (:data:`SHIPPED_POLICIES`) that :meth:`GainPolicy.load` and
+``teleopkit evaluate --policy`` take in place of a file.
 """
 
 from __future__ import annotations
 
 import json
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -16,7 +19,7 @@ import numpy as np
 if TYPE_CHECKING:
     from teleopkit.rl.networks import Actor
 
-__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "GainPolicy"]
+__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "SHIPPED_POLICIES", "GainPolicy", "resolve_policy"]
 
 PRETRAINED = "td3_policy.npz"
 """File name of the paper's tuner in ``teleopkit/data``: trained under the closed form's
@@ -27,6 +30,43 @@ PRETRAINED_COVERED = "td3_covered_policy.npz"
 """File name of the shipped tuner trained under a certificate whose class covers every schedule
 the safety layer lets through (its metadata holds the certificate;
 ``examples/train_covered.py``)."""
+
+SHIPPED_POLICIES: Mapping[str, str] = MappingProxyType({"covered": PRETRAINED_COVERED,
+                                                         "paper": PRETRAINED})
+"""Names of the shipped policies, with their files in ``teleopkit/data``: ``covered`` the tuner
+trained under the ``tank:3`` class, whose certificate covers every schedule it plays
+(:data:`PRETRAINED_COVERED`); ``paper`` the paper's tuner (:data:`PRETRAINED`)."""
+
+_DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def resolve_policy(source: str | Path) -> Path:
+    """The file of a policy given by name (:data:`SHIPPED_POLICIES`) or by path.
+
+    A shipped name is read as that name: write ``./covered`` for a file called ``covered``.
+
+    Parameters
+    ----------
+    source : str or Path
+        A shipped policy's name, or a policy file.
+
+    Returns
+    -------
+    Path
+        The file.
+
+    Raises
+    ------
+    ValueError
+        If ``source`` is neither a shipped name nor an existing file (one line listing the
+        names).
+    """
+    if isinstance(source, str) and source in SHIPPED_POLICIES:
+        return _DATA / SHIPPED_POLICIES[source]
+    if not Path(source).is_file():
+        raise ValueError(f"{source} is neither a policy file nor a shipped policy "
+                         f"({', '.join(SHIPPED_POLICIES)})")
+    return Path(source)
 
 
 class GainPolicy:
@@ -107,12 +147,13 @@ class GainPolicy:
 
     @classmethod
     def load(cls, path: str | Path) -> GainPolicy:
-        """Read a file written by :meth:`save`.
+        """Read a file written by :meth:`save`, or a shipped policy by name.
 
         Parameters
         ----------
         path : str or Path
-            ``.npz`` file.
+            ``.npz`` file, or the name of a shipped policy (:data:`SHIPPED_POLICIES`, for
+            example ``"covered"``).
 
         Returns
         -------
@@ -122,8 +163,9 @@ class GainPolicy:
         Raises
         ------
         ValueError
-            If the file is not a policy file.
+            If the file is not a policy file, or there is no such file or shipped policy.
         """
+        path = resolve_policy(path)
         try:
             with np.load(path, allow_pickle=False) as data:
                 layers = sum(1 for key in data.files if key.startswith("w"))
@@ -144,17 +186,15 @@ class GainPolicy:
         Parameters
         ----------
         name : str
-            :data:`PRETRAINED` (the paper's tuner) or :data:`PRETRAINED_COVERED`.
+            A name of :data:`SHIPPED_POLICIES`, or a file name: :data:`PRETRAINED` (the paper's
+            tuner) or :data:`PRETRAINED_COVERED`.
 
         Returns
         -------
         GainPolicy
             The policy.
         """
-        from importlib import resources
-
-        with resources.as_file(resources.files("teleopkit") / "data" / name) as path:
-            return cls.load(path)
+        return cls.load(_DATA / SHIPPED_POLICIES.get(name, name))
 
     @property
     def action_dim(self) -> int:

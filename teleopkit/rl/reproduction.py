@@ -10,24 +10,29 @@ not cover its switching) as the paper's claim: ``covered`` is no on its row.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
 
+from teleopkit.progress import reports_progress
 from teleopkit.rl.comparison import (
     REFERENCE,
-    Comparators,
+    comparators_for,
     compare,
+    evaluation_config,
     policy_certificate,
     report_preamble,
 )
 from teleopkit.rl.controllers import ConstantGains
-from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, GainPolicy
+from teleopkit.setup import Setup
 
 __all__ = ["PAPER_TUNER", "Reproduction", "reproduce"]
+
+_log = logging.getLogger(__name__)
 
 PAPER_TUNER = "TD3 (paper, frozen)"
 """Row of the paper's tuner: trained under the frozen class, which does not cover it."""
@@ -52,7 +57,9 @@ class Reproduction:
     out: Path
 
 
-def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED) -> Reproduction:
+@reports_progress
+def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
+              setup: Setup | None = None, progress: bool | None = None) -> Reproduction:
     """Write the paper's figures and the comparison table of the shipped tuners to ``out``.
 
     Parameters
@@ -63,6 +70,13 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED) -> Re
         Held-out scenarios of the table.
     seed : int
         Their seed.
+    setup : Setup, optional
+        The scenarios' setup (the paper's by default): another operator, start or network of
+        the paper's plant, on which the comparators are searched anew (the shipped tuners are
+        certified for the paper's plant only).
+    progress : bool, optional
+        Show which step runs on standard error: by default on a terminal only; ``False`` never,
+        ``True`` always (:mod:`teleopkit.progress`).
 
     Returns
     -------
@@ -75,19 +89,26 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED) -> Re
     covered = GainPolicy.pretrained(PRETRAINED_COVERED)
     paper = GainPolicy.pretrained(PRETRAINED)
     certificate = policy_certificate(covered)
-    config = FlexTeleopConfig(certificate=certificate)
-    comparators = (Comparators.stored(covered, certificate)
-                   or Comparators.find(covered, certificate, config))
+    config = evaluation_config(certificate, setup)
+    comparators = comparators_for(covered, certificate, config)
     per_scenario = compare([covered], scenarios, seed, certificate, comparators=comparators,
-                           others={PAPER_TUNER: (paper, FlexTeleopConfig())})
+                           others={PAPER_TUNER: (paper, replace(config, certificate=None))},
+                           setup=setup)
     tuner = f"TD3 ({certificate.gain_variation})"
-    preamble = report_preamble(comparators, scenarios, seed, "paper", tuner, others={
+    delays = ", ".join(dict.fromkeys(config.setup.network.forward.profiles
+                                     + config.setup.network.backward.profiles))
+    preamble = report_preamble(comparators, scenarios, seed, delays, tuner, setup=config.setup,
+                               others={
         PAPER_TUNER: "the paper's tuner (teleopkit/data/td3_policy.npz), trained under the "
                      "frozen class, whose certificate covers constant gains only: it switches "
                      "them every few steps, so its row is not covered (the paper's claim)."})
     summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble,
                           tuner=tuner)
+    _log.info("reproduction: running the episodes of the figures")
+    frozen = replace(config, certificate=None)
     runs = {tuner: rollout(covered, 1, seed, config).to_frame(),
-            PAPER_TUNER: rollout(paper, 1, seed).to_frame(),
-            REFERENCE: rollout(ConstantGains(comparators.frozen_static), 1, seed).to_frame()}
+            PAPER_TUNER: rollout(paper, 1, seed, frozen).to_frame(),
+            REFERENCE: rollout(ConstantGains(comparators.frozen_static), 1, seed,
+                               frozen).to_frame()}
+    _log.info("reproduction: drawing the figures")
     return Reproduction(summary, save_paper_figures(runs, directory), directory)

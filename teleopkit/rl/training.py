@@ -246,6 +246,7 @@ class _Run:
         data["polytope_h"] = self.env.safety_layer.polytope.h.tolist()
         data["control_period"] = env_config.control_period
         data["dt"] = env_config.dt
+        data["setup"] = env_config.setup.fingerprint
         return json.loads(json.dumps(data))
 
     def state_dict(self) -> dict[str, Any]:
@@ -388,10 +389,11 @@ class _Run:
                 "unsafe_actions": counters.unsafe_actions}
 
     def _metadata(self) -> dict[str, Any]:
-        """Training settings and length, and the certificate trained under (evaluation reads it)."""
+        """Training settings, the certificate (evaluation reads it) and the setup trained on."""
         return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds,
                 "gain_variation": self.env.certificate.gain_variation,
-                "certificate": self.env.certificate.to_dict()}
+                "certificate": self.env.certificate.to_dict(),
+                "setup": self.env.config.setup.record}
 
     def policy(self) -> GainPolicy:
         """The current actor with the training settings as metadata."""

@@ -32,6 +32,7 @@ from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.factors import MODEL_FACTORS
 from teleopkit.robustness.spec import reference_gains
+from teleopkit.setup import Setup
 from teleopkit.sim.divergence import Divergence
 from teleopkit.sim.metrics import RunningMetrics
 from teleopkit.sim.scenarios import Scenario, sample_reference_gains
@@ -60,7 +61,8 @@ def _model_params(row: Mapping[str, Any] | pd.Series) -> TeleoperatorParams:
     n = base.n_joints
 
     def arm(source: PlanarArm, scale: float) -> PlanarArm:
-        return PlanarArm(source.lengths, tuple(scale * m for m in source.masses))
+        inertia = None if source.inertia is None else tuple(scale * i for i in source.inertia)
+        return replace(source, masses=tuple(scale * m for m in source.masses), inertia=inertia)
 
     return replace(
         base,
@@ -184,7 +186,7 @@ def _run_policy(scenario: Scenario, policy: GainPolicy, task: ChunkTask) -> pd.D
     certificate of the scenario's teleoperator.
     """
     params = scenario.params
-    config = FlexTeleopConfig(params, default_certificate(params), task.duration,
+    config = FlexTeleopConfig(Setup.from_params(params), default_certificate(params), task.duration,
                               task.control_period, task.dt)
     core = TeleopBatch(config, scenario.batch)
     obs = core.start(scenario)

@@ -58,6 +58,7 @@ from teleopkit.rl.evaluation import closed_loop
 from teleopkit.robustness.adversary import Decision, SearchSpace, decode, gain_schedule
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
+from teleopkit.setup import Setup
 from teleopkit.sim.divergence import Divergence, position_magnitude
 from teleopkit.sim.energy import mechanical_energy
 from teleopkit.sim.scenarios import Scenario
@@ -81,7 +82,7 @@ def _simulate(space: SearchSpace, decision: Decision) -> tuple[Trajectory, np.nd
     scenario = Scenario(space.params, decision.forward, decision.backward,
                         decision.reference_gains)
     if space.controller is not None:
-        config = FlexTeleopConfig(params=space.params, certificate=space.certificate,
+        config = FlexTeleopConfig(Setup.from_params(space.params), space.certificate,
                                   episode_length=space.duration, dt=space.dt,
                                   control_period=space.control_period)
         run = closed_loop(space.controller, scenario, config)

@@ -172,14 +172,15 @@ def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, 
     """
     _, _, row, p = clock
     lane = lo + w
+    col = min(lane, qh.shape[1] - 1)  # the batch's shared motion, or the lane's own
     ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
     qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
     th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
     local1, link1, ddth1 = _joint(m, 0, ql1, dql1, qr1, dqr1, th1, dth1, delayed[b, 0, w],
-                                  delayed[b, 2, w], qh[row, 0] * qh_gain[lane, 0],
+                                  delayed[b, 2, w], qh[row, col, 0] * qh_gain[lane, 0],
                                   gains[p, lane, 0], gains[p, lane, 2])
     local2, link2, ddth2 = _joint(m, 1, ql2, dql2, qr2, dqr2, th2, dth2, delayed[b, 1, w],
-                                  delayed[b, 3, w], qh[row, 1] * qh_gain[lane, 1],
+                                  delayed[b, 3, w], qh[row, col, 1] * qh_gain[lane, 1],
                                   gains[p, lane, 1], gains[p, lane, 3])
     ddql1, ddql2 = _two_link_acceleration(m, 0, ql2, dql1, dql2, local1, local2)
     ddqr1, ddqr2 = _two_link_acceleration(m, 1, qr2, dqr1, dqr2, link1, link2)
@@ -284,6 +285,7 @@ def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clo
     lane = lo + w
     length = hist.shape[2]
     n = initial.shape[2]
+    col = min(lane, qh.shape[1] - 1)
     to_remote = locate(k, newest, frac, delay_at(delays, scale, drow, 0, lane), dt, length)
     to_local = locate(k, newest, frac, delay_at(delays, scale, drow, 1, lane), dt, length)
     for i in range(n):
@@ -292,7 +294,7 @@ def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clo
                           initial)
         work[b, n, i], work[b, n + 1, i], slopes[b, r, 5 * n + i, w] = _joint(
             m, i, st[b, i, w], st[b, n + i, w], st[b, 2 * n + i, w], st[b, 3 * n + i, w],
-            st[b, 4 * n + i, w], st[b, 5 * n + i, w], ql, th, qh[row, i] * qh_gain[lane, i],
+            st[b, 4 * n + i, w], st[b, 5 * n + i, w], ql, th, qh[row, col, i] * qh_gain[lane, i],
             gains[p, lane, i], gains[p, lane, n + i])
         slopes[b, r, i, w] = st[b, n + i, w]
         slopes[b, r, 2 * n + i, w] = st[b, 3 * n + i, w]
@@ -545,9 +547,10 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         For delays that jump (:mod:`teleopkit.delays.jumps`): their left limits at the end of
         every step, in the factors of ``delays``, which the step's last stage reads (the next
         step's first reads row ``4 (j + 1)`` of ``delays``). Empty for continuous delays.
-    qh, qh_gain : ndarray, shapes (4 P substeps + 1, n) and (B, n)
-        The operator reference at the same times is ``qh[s] * qh_gain[b]`` (the reference motion
-        with unit gains, times each scenario's gains ``G``).
+    qh, qh_gain : ndarray, shapes (4 P substeps + 1, M, n) and (B, n)
+        The operator reference at the same times is ``qh[s, b] * qh_gain[b]`` (the reference
+        motion with unit gains, times each scenario's gains ``G``), or ``qh[s, 0] * qh_gain[b]``
+        when the batch shares one motion (``M = 1``).
     gains : ndarray, shape (P, B, 2 n)
         Remote gains ``[K_r, B_r]`` held over each control period.
     model : ndarray

@@ -1,7 +1,9 @@
-"""Scenarios: a teleoperator, its two delay profiles and the operator's per-episode reference gains.
+"""Scenarios: a teleoperator, its two delay profiles, the operator's motions and the starts.
 
 :func:`paper_scenarios` draws the randomisation of the authors' simulation model: reference
 gains ``G_i`` uniform on ``[-1, -0.5] U [0.5, 1]`` and delay scales ``g_m, g_s ~ U[0.5, 1]``.
+A :class:`~teleopkit.setup.Setup` draws batches of other distributions (operator motions,
+starts and delays per scenario).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 from teleopkit.delays.paper_fit import PAPER_DELAY_MAX, PAPER_DELAY_MIN
 from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.sim.motions import Motion, SineMotion
 
 __all__ = ["PAPER_DELAY_BOUND", "PAPER_DELAY_FLOOR", "PAPER_SCALES", "Scenario", "paper_scenarios",
            "sample_reference_gains"]
@@ -34,6 +37,9 @@ minimum covers the paper's scenarios."""
 class Scenario:
     """A batch of ``B`` scenarios sharing one teleoperator.
 
+    The operator reference of scenario ``b`` is ``reference_gains[b]`` times column ``b`` of
+    ``motion`` (its only column when the batch shares one motion).
+
     Parameters
     ----------
     params : TeleoperatorParams
@@ -44,12 +50,20 @@ class Scenario:
         Remote-to-local delay ``T_r(t)`` (batch 1 or ``B``).
     reference_gains : ndarray, shape (B, n)
         Operator reference gains ``G`` of each scenario.
+    motion : Motion, optional
+        Operator reference motion (1 or ``B`` columns); by default the sines of
+        ``params.operator``.
+    start : ndarray, shape (B, 3, n) or (1, 3, n), optional
+        Initial positions ``q_l(0), q_r(0), theta_r(0)`` of each scenario (or shared); by
+        default ``params.initial``. Velocities start at zero and the past is held constant.
     """
 
     params: TeleoperatorParams = field(default_factory=paper_setup)
     forward: DelayProfile = field(default_factory=ConstantDelay)
     backward: DelayProfile = field(default_factory=ConstantDelay)
     reference_gains: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
+    motion: Motion | None = None
+    start: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         gains = np.atleast_2d(np.asarray(self.reference_gains, dtype=float))
@@ -59,6 +73,8 @@ class Scenario:
         if not np.all(np.isfinite(gains)):
             raise ValueError("reference gains must be finite")
         object.__setattr__(self, "reference_gains", gains)
+        self._check_motion()
+        self._check_start()
         for name in ("forward", "backward"):
             profile = getattr(self, name)
             bound = profile.bound
@@ -69,15 +85,89 @@ class Scenario:
                 raise ValueError(f"the {name} delay profile has {columns} scenarios, the "
                                  f"reference gains {gains.shape[0]}: give it 1 or the same")
 
+    def _check_motion(self) -> None:
+        motion = self.motion
+        if motion is None:
+            object.__setattr__(self, "motion", SineMotion.from_operator(self.params.operator))
+            return
+        if not isinstance(motion, Motion):
+            raise ValueError(f"motion must be a Motion (columns, n_joints, sample), got {motion!r}")
+        n, batch = self.params.n_joints, self.reference_gains.shape[0]
+        if motion.n_joints != n:
+            raise ValueError(f"the operator motion moves {motion.n_joints} joints, the arm has {n}")
+        if motion.columns not in (1, batch):
+            raise ValueError(f"the operator motion has {motion.columns} scenarios, the reference "
+                             f"gains {batch}: give it 1 or the same")
+
+    def _check_start(self) -> None:
+        n, batch = self.params.n_joints, self.reference_gains.shape[0]
+        if self.start is None:
+            initial = self.params.initial
+            start = np.array([[initial.local, initial.remote, initial.motor]], dtype=float)
+        else:
+            start = np.asarray(self.start, dtype=float)
+        if start.ndim != 3 or start.shape[1:] != (3, n) or start.shape[0] not in (1, batch):
+            raise ValueError(f"start needs shape ({batch} or 1, 3, {n}) (q_l, q_r, theta_r), "
+                             f"got {start.shape}")
+        if not np.all(np.isfinite(start)):
+            raise ValueError("start positions must be finite")
+        object.__setattr__(self, "start", start)
+
     @property
     def batch(self) -> int:
         """Number of scenarios."""
         return self.reference_gains.shape[0]
 
     @property
+    def starts(self) -> np.ndarray:
+        """Initial positions ``(B, 3, n)``: ``q_l(0), q_r(0), theta_r(0)`` of each scenario."""
+        return np.broadcast_to(self.start, (self.batch, *self.start.shape[1:]))
+
+    def repeat(self, times: int) -> Scenario:
+        """The batch repeated ``times`` times along the batch axis (one copy per candidate).
+
+        Shared delay profiles and motions stay shared; per-scenario ones are repeated (the
+        paper's and constant delays keep their factored form, others are stacked).
+
+        Parameters
+        ----------
+        times : int
+            Copies.
+
+        Returns
+        -------
+        Scenario
+            ``times * batch`` scenarios, copy ``c`` of scenario ``b`` at ``c * batch + b``.
+        """
+        motion = self.motion
+        if motion is not None and motion.columns > 1:
+            if not isinstance(motion, SineMotion):
+                raise ValueError(f"cannot repeat a motion of type {type(motion).__name__}")
+            motion = SineMotion(*(np.tile(getattr(motion, name), (times, 1, 1)) for name in (
+                "amplitudes", "frequencies", "phases", "decays")))
+        start = self.start if self.start is None or len(self.start) == 1 else np.tile(
+            self.start, (times, 1, 1))
+        return Scenario(self.params, _repeat_delay(self.forward, self.batch, times),
+                        _repeat_delay(self.backward, self.batch, times),
+                        np.tile(self.reference_gains, (times, 1)), motion, start)
+
+    @property
     def delay_bound(self) -> float:
         """Largest delay of either channel."""
         return max(self.forward.bound, self.backward.bound)
+
+
+def _repeat_delay(profile: DelayProfile, batch: int, times: int) -> DelayProfile:
+    """A profile of ``batch`` scenarios (or one shared) repeated ``times`` times."""
+    if np.shape(profile.sample(np.zeros(1)))[-1] == 1:
+        return profile
+    if isinstance(profile, FourierDelay):
+        return FourierDelay(np.tile(profile.scale, times), profile.bound)
+    if isinstance(profile, ConstantDelay):
+        return ConstantDelay(np.tile(profile.value, times), profile.bound)
+    from teleopkit.delays.combinators import StackedDelay
+
+    return StackedDelay((profile,) * times)
 
 
 def sample_reference_gains(rng: np.random.Generator, batch: int, n_joints: int = 2) -> np.ndarray:

@@ -18,12 +18,12 @@ from typing import TYPE_CHECKING, Literal, Protocol, cast
 import numpy as np
 
 from teleopkit.delays.jumps import has_jumps, sample_left
-from teleopkit.delays.profiles import ConstantDelay, DelayProfile
-from teleopkit.delays.spec import check_duration, parse_delay
-from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.delays.profiles import DelayProfile
+from teleopkit.delays.spec import check_duration
+from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
-from teleopkit.sim.scenarios import Scenario, sample_reference_gains
+from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.stability import check_motor_damping, check_step
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.tableau import ROWS_PER_STEP
@@ -48,6 +48,8 @@ fitting in memory already touched (``benchmarks/README.md`` has the measurements
 
 if TYPE_CHECKING:
     import pandas as pd
+
+    from teleopkit.setup import Setup
 
 Backend = Literal["compiled", "numpy"]
 
@@ -148,6 +150,11 @@ class Simulator:
         return 1 if self._factored else self.batch
 
     @property
+    def _input_columns(self) -> int:
+        """Columns of sampled inputs: the delays' or the operator motion's, the larger."""
+        return max(self._delay_columns, self.scenario.motion.columns)
+
+    @property
     def time(self) -> float:
         """Current simulation time in seconds."""
         return self._step * self.dt
@@ -158,9 +165,9 @@ class Simulator:
         return (self._numpy.state if self._numpy else self._x).copy()
 
     def initial_state(self) -> np.ndarray:
-        """State at ``t = 0``: the scenario's initial positions, zero velocities and integrals."""
-        init = self.scenario.params.initial
-        return self.layout.pack(self.batch, ql=init.local, qr=init.remote, theta=init.motor)
+        """State at ``t = 0``: the scenarios' initial positions, zero velocities and integrals."""
+        starts = self.scenario.starts
+        return self.layout.pack(self.batch, ql=starts[:, 0], qr=starts[:, 1], theta=starts[:, 2])
 
     def _constant_past(self, x: np.ndarray) -> np.ndarray:
         """What each channel delivers before its first sample, shape ``(B, 2, n)``."""
@@ -206,16 +213,16 @@ class Simulator:
         """
         delays, scale, unit = self._sample(times)
         return ((delays * scale).transpose(0, 2, 1),
-                self.scenario.reference_gains[None] * unit[:, None])
+                self.scenario.reference_gains[None] * unit)
 
     def _sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Delays in the kernel's factors at ``times`` and the operator reference with unit gains.
 
-        Shapes ``(S, 2, K)``, ``(2, B)`` and ``(S, n)``: when both channels' profiles have
+        Shapes ``(S, 2, K)``, ``(2, B)`` and ``(S, M, n)``: when both channels' profiles have
         ``factors``, one shape of time per channel (``K = 1``) and each scenario's scale,
         else one column per scenario (``K = B``) and ones (:func:`~teleopkit.sim.kernel.advance`).
-        The reference of scenario ``b`` is ``G_b`` times the unit one (see
-        :class:`~teleopkit.model.params.Operator`), so it is evaluated once, not once per scenario.
+        The reference of scenario ``b`` is ``G_b`` times its column of the motion (``M = 1``
+        when the batch shares one motion: it is evaluated once, not once per scenario).
         """
         channels = (self.scenario.forward, self.scenario.backward)
         delays = np.empty((times.size, 2, self._delay_columns))
@@ -225,8 +232,7 @@ class Simulator:
                 delays[:, c, 0], scale[c] = cast(_Factored, profile).factors(times)
             else:
                 delays[:, c] = profile.sample(times)
-        unit = self.scenario.params.operator.reference(times, np.ones((1, self.n_joints)))
-        return delays, scale, unit[:, 0]
+        return delays, scale, self.scenario.motion.sample(times)
 
     def advance(self, gains: np.ndarray) -> StepResult:
         """Simulate ``P`` control periods with the given remote gains.
@@ -256,7 +262,7 @@ class Simulator:
         """Times, delays and their scales, left limits and unit reference at the stage times.
 
         Shapes ``(S,)``, ``(S, 2, K)``, ``(2, B)``, ``(P substeps, 2, K)`` (empty for continuous
-        delays) and ``(S, n)`` (see :meth:`_sample`): every quarter step
+        delays) and ``(S, M, n)`` (see :meth:`_sample`): every quarter step
         (:data:`~teleopkit.sim.tableau.ROWS_PER_STEP`) of the next ``periods`` periods,
         ``S = 4 P substeps + 1``, and the end of each of their steps.
 
@@ -269,7 +275,7 @@ class Simulator:
         rows = ROWS_PER_STEP * periods * self.substeps + 1
         cached = self._inputs
         if cached is None or not cached.covers(self.scenario, self._step, rows):
-            ahead = max(rows, LOOKAHEAD_VALUES // self._delay_columns)
+            ahead = max(rows, LOOKAHEAD_VALUES // self._input_columns)
             try:
                 cached = self._sample_from_here(ahead)
             except ValueError:
@@ -318,7 +324,7 @@ class Simulator:
         if self._numpy is not None:
             out.state[:], out.delayed[:] = self._numpy.advance(
                 (inputs.delays * scale).transpose(0, 2, 1),
-                reference_gains[None] * inputs.unit[:, None], gains,
+                reference_gains[None] * inputs.unit, gains,
                 (inputs.left * scale).transpose(0, 2, 1) if self._jumps else None)
         else:
             kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
@@ -366,7 +372,7 @@ class Simulator:
     def _periods_per_call(self, chunk: float | None) -> int:
         """Whole periods per kernel call of :meth:`run` (``chunk`` seconds, or the default)."""
         if chunk is None:
-            return max(1, CALL_VALUES // (ROWS_PER_STEP * self.substeps * self._delay_columns))
+            return max(1, CALL_VALUES // (ROWS_PER_STEP * self.substeps * self._input_columns))
         if not (math.isfinite(chunk) and chunk > 0):
             raise ValueError(f"chunk must be a positive number of seconds, got {chunk}")
         return max(1, round(chunk / self.control_period))
@@ -453,10 +459,11 @@ def available_memory() -> int:
 
 def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
                         duration: float = 40.0,
-                        delay: str | float | tuple[DelayProfile, DelayProfile] = "paper",
+                        delay: str | float | tuple[DelayProfile, DelayProfile] | None = None,
                         seed: int = 0,
                         params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
-                        control_period: float = CONTROL_PERIOD) -> Trajectory:
+                        control_period: float = CONTROL_PERIOD,
+                        setup: Setup | None = None) -> Trajectory:
     """Simulate one scenario; the arguments of :func:`simulate`, the run as a trajectory.
 
     Parameters
@@ -466,17 +473,21 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
         ``remote_gains`` by default.
     duration : float
         Length in seconds.
-    delay : str, float or (DelayProfile, DelayProfile)
+    delay : str, float or (DelayProfile, DelayProfile), optional
         A spec for :func:`teleopkit.delays.parse_delay`, a constant delay in seconds, or the
-        forward and backward profiles.
+        forward and backward profiles; by default the setup's network.
     seed : int
-        Seed of the operator's reference gains and of random delay parameters.
+        Seed of the operator's motion, the delays and the start (what the setup draws).
     params : TeleoperatorParams, optional
-        The teleoperator; the paper's by default.
+        The teleoperator, with the paper's network and operator draws (give ``params`` or
+        ``setup``, not both).
     dt : float
         Integration step.
     control_period : float
         Gain hold period.
+    setup : Setup, optional
+        Plant, network, operator and start (:class:`~teleopkit.setup.Setup`); the paper's by
+        default.
 
     Returns
     -------
@@ -488,29 +499,32 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
     ValueError
         On bad input, including delays as long as the run (a number meant in milliseconds).
     """
-    params = params if params is not None else paper_setup()
-    rng = np.random.default_rng(seed)
-    reference = sample_reference_gains(rng, 1, params.n_joints)
-    forward, backward = _delay_profiles(delay, rng)
+    from teleopkit.setup import Setup
+
+    if params is not None and setup is not None:
+        raise ValueError("give params or setup, not both")
+    setup = setup if setup is not None else (
+        Setup.from_params(params) if params is not None else Setup.paper())
+    scenario = setup.scenarios(seed, 1, delay)
     whole_periods(duration, control_period)
-    check_duration((forward, backward), duration)
+    check_duration((scenario.forward, scenario.backward), duration)
     action = None
     if gains is not None:
         gains = np.asarray(gains, dtype=float)
-        action = np.repeat(gains, params.n_joints) if gains.shape == (2,) else gains
-    sim = Simulator(Scenario(params, forward, backward, reference), dt, control_period)
-    return sim.run(duration, action)
+        action = np.repeat(gains, setup.n_joints) if gains.shape == (2,) else gains
+    return Simulator(scenario, dt, control_period).run(duration, action)
 
 
 def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
-             delay: str | float | tuple[DelayProfile, DelayProfile] = "paper", seed: int = 0,
+             delay: str | float | tuple[DelayProfile, DelayProfile] | None = None, seed: int = 0,
              params: TeleoperatorParams | None = None, dt: float = DEFAULT_DT,
-             control_period: float = CONTROL_PERIOD) -> pd.DataFrame:
+             control_period: float = CONTROL_PERIOD, setup: Setup | None = None,
+             ) -> pd.DataFrame:
     """Simulate one scenario and return it as a table.
 
     Parameters
     ----------
-    gains, duration, delay, seed, params, dt, control_period
+    gains, duration, delay, seed, params, dt, control_period, setup
         As for :func:`simulate_trajectory`.
 
     Returns
@@ -525,22 +539,5 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
     >>> len(table), float(table["t"].iloc[-1])
     (101, 1.0)
     """
-    return simulate_trajectory(gains, duration, delay, seed, params, dt,
-                               control_period).to_frame()
-
-
-def _delay_profiles(delay: object, rng: np.random.Generator,
-                    ) -> tuple[DelayProfile, DelayProfile]:
-    """The forward and backward profiles that an argument ``delay`` of :func:`simulate` names."""
-    if isinstance(delay, str):
-        return parse_delay(delay, rng)
-    if isinstance(delay, int | float) and not isinstance(delay, bool):
-        return ConstantDelay(float(delay)), ConstantDelay(float(delay))
-    if isinstance(delay, tuple | list):
-        if len(delay) == 2 and all(callable(getattr(p, "sample", None)) for p in delay):
-            return delay[0], delay[1]
-        got = f"{len(delay)} item(s), not two delay profiles"
-    else:
-        got = repr(delay)
-    raise ValueError("delay must be a spec string, a constant in seconds or a pair of delay "
-                     f"profiles (forward, backward), got {got}")
+    return simulate_trajectory(gains, duration, delay, seed, params, dt, control_period,
+                               setup).to_frame()

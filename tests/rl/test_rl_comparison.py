@@ -64,7 +64,7 @@ def test_an_edited_recorded_certificate_is_refused():
 def test_the_comparison_always_has_the_frozen_reference():
     policy = tank_policy()
     short = np.array([[2.0, 2.0, 5.0, 5.0]] * 20)
-    comparators = Comparators("tank:3", Comparators.key(TANK),
+    comparators = Comparators("tank:3", Comparators.key(TANK, FlexTeleopConfig(certificate=TANK)),
                               np.array([3.4, 7.4, 8.6, 18.5]), np.array([3.0, 3.0, 7.5, 7.5]),
                               (3.0, 1.0, 40.0), short)
     table = compare([policy], 2, 5, duration=0.2, comparators=comparators)
@@ -76,4 +76,5 @@ def test_the_comparison_always_has_the_frozen_reference():
     assert rows.loc["semi-active (tank:3)", "certificate"] == "tank:3"
     assert table["covered"].all() and (table["unsafe_actions"] == 0).all()
     again = Comparators.from_dict(json.loads(json.dumps(comparators.to_dict())))
-    assert again.key(TANK) == again.fingerprint and again.semi_active == (3.0, 1.0, 40.0)
+    key = again.key(TANK, FlexTeleopConfig(certificate=TANK))
+    assert key == again.fingerprint and again.semi_active == (3.0, 1.0, 40.0)

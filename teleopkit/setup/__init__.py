@@ -1,0 +1,15 @@
+"""Setups: a user's plant, network, operator and start as one value, read from a file.
+
+:class:`Setup` is what every entry point of the toolkit takes (``setup=`` in Python,
+``--setup FILE`` on the command line); :meth:`Setup.paper` is the source paper's, shipped as
+``paper_setup.yaml``.
+"""
+
+from teleopkit.setup.network import Channel, Network
+from teleopkit.setup.operator import MotionSpec, OperatorSetup
+from teleopkit.setup.reading import SetupError
+from teleopkit.setup.setup import PAPER_SETUP_FILE, Setup, paper_setup_path
+from teleopkit.setup.start import StartSpec
+
+__all__ = ["PAPER_SETUP_FILE", "Channel", "MotionSpec", "Network", "OperatorSetup", "Setup",
+           "SetupError", "StartSpec", "paper_setup_path"]

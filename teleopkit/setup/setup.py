@@ -1,0 +1,418 @@
+"""A whole teleoperation setup as one frozen value: plant, network, operator and start.
+
+A setup file (YAML; JSON is YAML too) describes what the toolkit's commands need to know about
+a user's teleoperator::
+
+    plant:
+      local_arm:   {lengths: [0.38, 0.38], masses: [0.5, 0.35]}   # optional com, inertia
+      remote_arm:  {lengths: [0.38, 0.38], masses: [0.5, 0.35]}
+      joints:      {stiffness: [100, 100], rotor_inertia: [0.3, 0.3]}
+      local_gains: {stiffness: [25, 25], damping: [10, 10]}
+      environment: free            # or {wall: [0.5, .inf], stiffness: 1000, damping: 5}
+      torque_limit: 300            # N m; .inf for none
+    network:
+      forward:  {min: 0.0, max: 1.0, profile: paper}   # any delay spec, or a list of them
+      backward: {min: 0.0, max: 1.0, profile: paper}
+    operator: {stiffness: 10, damping: 2, motion: paper}
+    start: paper
+
+Only ``plant.local_arm`` is required: left-out entries take the paper's values (sized to the
+arm's joints where the paper's have two). The paper's setup ships as ``paper_setup.yaml``
+(:data:`PAPER_SETUP_FILE`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from teleopkit.delays.profiles import DelayProfile
+from teleopkit.delays.spec import delay_pair
+from teleopkit.model.params import (
+    ElasticJoints,
+    PDGains,
+    PlanarArm,
+    TeleoperatorParams,
+    Wall,
+)
+from teleopkit.setup.network import Channel, Network, spec_reach
+from teleopkit.setup.operator import MotionSpec, OperatorSetup
+from teleopkit.setup.reading import Node, SetupError, load_document
+from teleopkit.setup.start import StartSpec
+from teleopkit.sim.scenarios import Scenario
+
+__all__ = ["PAPER_SETUP_FILE", "Setup"]
+
+PAPER_SETUP_FILE = "paper_setup.yaml"
+"""Name of the paper's setup file among the package's data (``teleopkit/data``)."""
+
+_PAPER = TeleoperatorParams()
+
+
+def _per_joint(node: Node | None, default: tuple[float, ...], n: int, **checks: Any
+               ) -> tuple[float, ...]:
+    """A per-joint entry, or the paper's value (its first entry repeated for other sizes)."""
+    if node is not None:
+        return node.numbers(n, **checks)
+    return default if len(default) == n else (default[0],) * n
+
+
+def _arm(node: Node, n: int | None) -> PlanarArm:
+    entries = node.fields(("lengths", "masses", "com", "inertia"), ("lengths", "masses"))
+    lengths = entries["lengths"].numbers(n, 0.0, strict=True)
+    masses = entries["masses"].numbers(len(lengths), 0.0, strict=True)
+    extra = {key: entries[key].numbers(len(lengths), 0.0) for key in ("com", "inertia")
+             if key in entries}
+    try:
+        return PlanarArm(lengths, masses, **extra)
+    except (TypeError, ValueError) as error:
+        raise node.error(str(error)) from None
+
+
+def _environment(node: Node | None, n: int) -> Any:
+    if node is None or node.value == "free":
+        return "free"
+    entries = node.fields(("wall", "stiffness", "damping"), ("wall",))
+    return Wall(entries["wall"].numbers(n, allow_inf=True),
+                entries["stiffness"].number(0.0) if "stiffness" in entries else 1000.0,
+                entries["damping"].number(0.0) if "damping" in entries else 5.0)
+
+
+def _plant(node: Node) -> dict[str, Any]:
+    """The model's parts from the ``plant`` entry."""
+    entries = node.fields(("local_arm", "remote_arm", "joints", "local_gains", "environment",
+                           "torque_limit"), ("local_arm",))
+    local = _arm(entries["local_arm"], None)
+    n = local.n_joints
+    remote = _arm(entries["remote_arm"], n) if "remote_arm" in entries else local
+    joints = entries["joints"].fields(("stiffness", "rotor_inertia")) if "joints" in entries \
+        else {}
+    gains = entries["local_gains"].fields(("stiffness", "damping")) if "local_gains" in entries \
+        else {}
+    limit = entries.get("torque_limit")
+    return {
+        "local_arm": local, "remote_arm": remote,
+        "joints": ElasticJoints(
+            _per_joint(joints.get("stiffness"), _PAPER.joints.stiffness, n, minimum=0.0,
+                       strict=True),
+            _per_joint(joints.get("rotor_inertia"), _PAPER.joints.rotor_inertia, n, minimum=0.0,
+                       strict=True)),
+        "local_gains": PDGains(
+            _per_joint(gains.get("stiffness"), _PAPER.local_gains.stiffness, n, minimum=0.0),
+            _per_joint(gains.get("damping"), _PAPER.local_gains.damping, n, minimum=0.0)),
+        "environment": _environment(entries.get("environment"), n),
+        "torque_limit": limit.number(0.0, strict=True, allow_inf=True) if limit is not None
+        else _PAPER.torque_limit,
+    }
+
+
+def _plain(value: Any) -> Any:
+    """YAML- and JSON-safe data: tuples as lists, infinities as ``inf`` strings for JSON."""
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return value
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A teleoperation setup: the plant, the network, the operator and the start.
+
+    Build it with :meth:`paper`, :meth:`from_file`, :meth:`from_data` or :meth:`from_params`;
+    every entry point of the toolkit takes one (``setup=``) and draws its scenarios with
+    :meth:`scenarios`.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The model: arms, joints, local gains, operator spring and damper, environment, torque
+        limit (its operator sines and initial state are those of ``operator`` and ``start``
+        where they are fixed).
+    network : Network
+        Delay range and profiles of each direction.
+    operator : OperatorSetup
+        Operator spring, damper and motions.
+    start : StartSpec
+        Initial positions.
+    base : Path, optional
+        Directory of the file it was read from (relative ``csv:`` paths start there); not
+        part of the setup's identity.
+
+    Examples
+    --------
+    >>> setup = Setup.paper()
+    >>> setup.n_joints, setup.network.bounds
+    (2, (1.0, 1.0))
+    >>> setup.scenarios(0, batch=4).batch
+    4
+    """
+
+    params: TeleoperatorParams = field(default_factory=TeleoperatorParams)
+    network: Network = field(default_factory=Network)
+    operator: OperatorSetup = field(default_factory=OperatorSetup)
+    start: StartSpec = field(default_factory=lambda: StartSpec.fixed(_PAPER.initial))
+    base: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        n = self.params.n_joints
+        if self.start.low.shape[1] != n:
+            raise SetupError(f"start: has {self.start.low.shape[1]} joints, the arm has {n}")
+
+    @classmethod
+    def paper(cls) -> Setup:
+        """The paper's setup (identical to the shipped ``paper_setup.yaml``)."""
+        return cls()
+
+    @classmethod
+    def from_params(cls, params: TeleoperatorParams, network: Network | None = None) -> Setup:
+        """A setup of a model: its operator's sines with the paper's gains, its fixed start.
+
+        Parameters
+        ----------
+        params : TeleoperatorParams
+            The model.
+        network : Network, optional
+            The network; the paper's by default.
+
+        Returns
+        -------
+        Setup
+            Scenarios drawn from it equal :func:`~teleopkit.sim.scenarios.paper_scenarios` of
+            ``params`` when the network is the paper's.
+        """
+        operator = OperatorSetup(params.operator.stiffness, params.operator.damping,
+                                 MotionSpec.paper(params.operator))
+        return cls(params, network or Network(), operator, StartSpec.fixed(params.initial))
+
+    @classmethod
+    def from_data(cls, data: Any, base: str | Path | None = None) -> Setup:
+        """Read a setup from parsed YAML data.
+
+        Parameters
+        ----------
+        data : mapping
+            The document (keys ``plant``, ``network``, ``operator``, ``start``).
+        base : str or Path, optional
+            Directory that relative ``csv:`` paths start from (the current one by default).
+
+        Returns
+        -------
+        Setup
+            The setup.
+
+        Raises
+        ------
+        SetupError
+            One line naming the key path and the problem.
+        """
+        root = Path(base) if base is not None else Path.cwd()
+        entries = Node(data).fields(("plant", "network", "operator", "start"), ("plant",))
+        parts = _plant(entries["plant"])
+        n = parts["local_arm"].n_joints
+        network = entries["network"].fields(("forward", "backward")) if "network" in entries \
+            else {}
+        channels = [Channel.from_node(network[key], root, k) if key in network else Channel()
+                    for k, key in enumerate(("forward", "backward"))]
+        operator = OperatorSetup.from_node(entries.get("operator", Node(None, "operator")), n,
+                                           root)
+        start = StartSpec.from_node(entries.get("start", Node("paper" if n == 2 else "rest",
+                                                              "start")), n)
+        try:
+            params = TeleoperatorParams(
+                **parts, remote_gains=PDGains.uniform(10.0, 30.0, n),
+                operator=operator.model(n), initial=start.initial())
+        except ValueError as error:
+            raise SetupError(f"plant: {error}") from None
+        return cls(params, Network(*channels), operator, start, root)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> Setup:
+        """Read a setup file (YAML or JSON); relative ``csv:`` paths start at its directory.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file.
+
+        Returns
+        -------
+        Setup
+            The setup.
+
+        Raises
+        ------
+        SetupError
+            One line naming the file, the key path and the problem.
+        """
+        path = Path(path)
+        data = load_document(path)
+        try:
+            return cls.from_data(data, path.resolve().parent)
+        except SetupError as error:
+            raise SetupError(f"{path}: {error}") from None
+
+    def to_data(self, base: str | Path | None = None) -> dict[str, Any]:
+        """The setup as setup-file data (every key written out).
+
+        Parameters
+        ----------
+        base : str or Path, optional
+            Directory the ``csv:`` paths are written relative to (absolute by default).
+
+        Returns
+        -------
+        dict
+            Keys ``plant``, ``network``, ``operator``, ``start``.
+        """
+        root = Path(base) if base is not None else None
+        p = self.params
+
+        def arm(value: PlanarArm) -> dict[str, Any]:
+            return {key: list(item) for key, item in asdict(value).items() if item is not None}
+
+        environment: Any = "free"
+        if isinstance(p.environment, Wall):
+            environment = {"wall": list(p.environment.position),
+                           "stiffness": p.environment.stiffness,
+                           "damping": p.environment.damping}
+        return {
+            "plant": {"local_arm": arm(p.local_arm), "remote_arm": arm(p.remote_arm),
+                      "joints": {"stiffness": list(p.joints.stiffness),
+                                 "rotor_inertia": list(p.joints.rotor_inertia)},
+                      "local_gains": {"stiffness": list(p.local_gains.stiffness),
+                                      "damping": list(p.local_gains.damping)},
+                      "environment": environment, "torque_limit": p.torque_limit},
+            "network": {"forward": self.network.forward.to_data(root),
+                        "backward": self.network.backward.to_data(root)},
+            "operator": {"stiffness": self.operator.stiffness,
+                         "damping": self.operator.damping,
+                         "motion": self.operator.motion.to_data(root)},
+            "start": self.start.to_data(),
+        }
+
+    def to_yaml(self, base: str | Path | None = None) -> str:
+        """The setup as the text of a setup file (see :meth:`to_data`)."""
+        import yaml
+
+        return yaml.safe_dump(self.to_data(base), sort_keys=False, default_flow_style=None)
+
+    def to_file(self, path: str | Path) -> None:
+        """Write the setup file (``csv:`` paths relative to its directory where they can be).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file (YAML).
+        """
+        from teleopkit.files import atomic_write
+
+        path = Path(path)
+        text = self.to_yaml(path.resolve().parent)
+        atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+    @property
+    def record(self) -> dict[str, Any]:
+        """The setup as JSON-ready data with absolute paths and the digests of its data files."""
+        digests = (self.network.forward.digests() + self.network.backward.digests()
+                   + self.operator.motion.digests())
+        return {**_plain(self.to_data()), "data_files": digests}
+
+    @property
+    def fingerprint(self) -> str:
+        """SHA-256 of :attr:`record` (16 hex digits): what comparators are cached by."""
+        text = json.dumps(self.record, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    @property
+    def n_joints(self) -> int:
+        """Joints of each arm."""
+        return self.params.n_joints
+
+    def with_delay(self, spec: str) -> Setup:
+        """A copy with both directions' delays drawn from one spec instead.
+
+        Parameters
+        ----------
+        spec : str
+            A delay spec (:func:`~teleopkit.delays.spec.parse_delay`), for example a shape a
+            tuner never saw in training.
+
+        Returns
+        -------
+        Setup
+            The same plant, operator and start; each channel's range is what the spec reaches.
+        """
+        reaches = [spec_reach(spec, direction) for direction in (0, 1)]
+        return replace(self, network=Network(*(Channel(low, high, (spec,))
+                                               for low, high in reaches)))
+
+    def scenarios(self, rng: np.random.Generator | int = 0, batch: int = 1,
+                  delay: str | float | tuple[DelayProfile, DelayProfile] | None = None,
+                  ) -> Scenario:
+        """Draw ``batch`` scenarios: operator motions, then delays, then starts.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator or int
+            Generator or seed.
+        batch : int
+            Scenarios.
+        delay : str, float or (DelayProfile, DelayProfile), optional
+            Delays in place of the network's (:func:`~teleopkit.delays.spec.delay_pair`): a
+            spec, a constant in seconds or the two profiles.
+
+        Returns
+        -------
+        Scenario
+            The batch (for the paper's setup, the draws of
+            :func:`~teleopkit.sim.scenarios.paper_scenarios`).
+        """
+        if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
+            raise ValueError(f"batch must be a whole number of scenarios >= 1, got {batch!r}")
+        rng = np.random.default_rng(rng)
+        gains, motion = self.operator.motion.draw(rng, batch, self.n_joints)
+        forward, backward = (self.network.draw(rng, batch) if delay is None
+                             else delay_pair(delay, rng))
+        return Scenario(self.params, forward, backward, gains, motion,
+                        self.start.draw(rng, batch))
+
+    def describe(self) -> list[str]:
+        """What the setup describes, a line per part, for people."""
+        p = self.params
+        arms = [f"{name} arm: {p.n_joints} links, lengths {_list(arm.lengths)} m, masses "
+                f"{_list(arm.masses)} kg" for name, arm in (("local", p.local_arm),
+                                                           ("remote", p.remote_arm))]
+        wall = ("free space" if not isinstance(p.environment, Wall)
+                else f"a wall at {_list(p.environment.position)} rad")
+        channels = [f"{name} delay: {ch.min:g}-{ch.max:g} s, profile {', '.join(ch.profiles)}"
+                    for name, ch in (("forward", self.network.forward),
+                                     ("backward", self.network.backward))]
+        return [*arms,
+                f"elastic joints: stiffness {_list(p.joints.stiffness)} N m/rad, rotor inertia "
+                f"{_list(p.joints.rotor_inertia)} kg m^2",
+                f"local gains: K_l {_list(p.local_gains.stiffness)}, B_l "
+                f"{_list(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
+                *channels,
+                f"operator: K_s {self.operator.stiffness:g}, K_d {self.operator.damping:g}; "
+                f"{self.operator.motion.describe()}",
+                f"start: {self.start.describe()}",
+                f"fingerprint {self.fingerprint}"]
+
+
+def _list(values: tuple[float, ...]) -> str:
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+
+def paper_setup_path() -> Path:
+    """Path of the shipped paper setup file."""
+    return Path(str(resources.files("teleopkit") / "data" / PAPER_SETUP_FILE))

@@ -1,0 +1,89 @@
+"""``--setup`` on the command line: the same numbers as Python, and the plant named."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import teleopkit as tk
+from teleopkit.setup import Setup, paper_setup_path
+
+ARM = """\
+plant:
+  local_arm:  {lengths: [0.3, 0.25], masses: [0.8, 0.5]}
+  remote_arm: {lengths: [0.45, 0.35], masses: [1.2, 0.6]}
+  joints:     {stiffness: [60, 60], rotor_inertia: [0.2, 0.2]}
+  local_gains: {stiffness: [20, 20], damping: [8, 8]}
+network:
+  forward:  {min: 0.05, max: 0.6, profile: "sine:0.3:0.2:0.5"}
+  backward: {min: 0.05, max: 0.6, profile: csv:back.csv}
+operator: {motion: {sines: {amplitudes: [0.5, 0.4], frequencies: [1, 2], decays: [0, 0]}}}
+start: rest
+"""
+
+
+def teleopkit(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "teleopkit.cli", *args], capture_output=True,
+                          text=True)
+
+
+@pytest.fixture
+def arm_file(tmp_path):
+    t = np.arange(0, 11.0, 0.05)
+    pd.DataFrame({"t": t, "delay": 0.3 + 0.25 * np.cos(0.4 * t)}).to_csv(tmp_path / "back.csv",
+                                                                       index=False)
+    path = tmp_path / "arm.yaml"
+    path.write_text(ARM)
+    return path
+
+
+def test_setup_prints_the_paper_file_and_describes_a_file(arm_file):
+    done = teleopkit("setup")
+    assert done.returncode == 0 and done.stdout == paper_setup_path().read_text()
+    done = teleopkit("setup", str(arm_file))
+    assert done.returncode == 0
+    assert "remote arm: 2 links, lengths [0.45, 0.35] m" in done.stdout
+    assert "backward delay: 0.05-0.6 s" in done.stdout
+    assert f"fingerprint {Setup.from_file(arm_file).fingerprint}" in done.stdout
+
+
+def test_simulate_with_a_setup_gives_the_numbers_of_python(arm_file, tmp_path):
+    out = tmp_path / "run.csv"
+    done = teleopkit("simulate", "--setup", str(arm_file), "--kr", "5", "--br", "30",
+                     "--duration", "2", "--seed", "3", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    table = tk.simulate((5.0, 30.0), duration=2.0, seed=3, setup=Setup.from_file(arm_file))
+    cli = pd.read_csv(out)
+    for column in ("ql_1", "qr_2", "theta_1", "Tl", "Tr", "e_track_1", "e_damp_2"):
+        np.testing.assert_allclose(cli[column].to_numpy(), table[column].to_numpy(),
+                                   rtol=1e-12, atol=1e-15)
+    assert cli["Tr"].max() <= 0.6 and cli["ql_1"].iloc[0] == 0.0  # its network, its start
+
+
+def test_certify_answers_for_the_setup_plant_and_names_it(arm_file):
+    ours = teleopkit("certify", "--setup", str(arm_file), "--kr", "1:20", "--br", "10:100")
+    paper = teleopkit("certify", "--kr", "1:20", "--br", "10:100")
+    assert ours.stdout.startswith("plant: local arm l [0.3, 0.25] m")
+    assert paper.stdout.startswith("plant: local arm l [0.38, 0.38] m")
+    assert "T_l* = 0.6 s" in ours.stdout and "T_l* = 1 s" in paper.stdout
+    answer = json.loads(teleopkit("certify", "--setup", str(arm_file), "--kr", "1:20", "--br",
+                                  "10:100", "--json").stdout)
+    assert answer["delay_bounds"] == [0.6, 0.6]
+    assert answer["plant"]["local_gains"]["stiffness"] == [20.0, 20.0]
+    assert answer["setup"]["network"]["backward"]["min"] == 0.05
+    # K_l = 20, B_l = 8: the closed form's margin of the box is sqrt(4 * 8 * 10 / (20 * 20)) / 2
+    assert answer["delay_margin"] == pytest.approx(np.sqrt(4 * 8 * 10 / (20 * 20)) / 2)
+
+
+def test_a_bad_setup_file_is_one_line_and_exit_2(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("plant: {local_arm: {lengths: [0.3], masses: [1]}}\nstart: paper\n")
+    done = teleopkit("simulate", "--setup", str(path), "--kr", "1", "--br", "3", "--out",
+                     str(tmp_path / "x.csv"))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert "start: unknown start 'paper' for 1 joints" in done.stderr
