@@ -57,8 +57,7 @@ def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) 
     try:
         numbers = [float(x) for x in value.split(",")]
     except ValueError:
-        raise _bad(name, f"needs a number, or one per joint separated by commas, got "
-                         f"{value!r}") from None
+        raise _bad(name, f"needs a number or two separated by a comma, got {value!r}") from None
     if not all(math.isfinite(v) and v >= 0 for v in numbers):
         raise _bad(name, f"must be finite and non-negative, got {value!r}")
     return numbers

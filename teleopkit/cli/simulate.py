@@ -96,7 +96,7 @@ def _per_joint(values: list[float], n: int, option: str) -> list[float]:
     if len(values) == 1:
         return values * n
     if len(values) != n:
-        raise click.BadParameter(f"give one value or {n} (one per joint), got {len(values)}",
+        raise click.BadParameter(f"needs 1 or {n} values (one per joint), got {len(values)}",
                                  param_hint=f"'{option}'")
     return values
 

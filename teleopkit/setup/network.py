@@ -3,7 +3,8 @@
 Each direction has a declared range ``[min, max]`` (what certificates must cover: the delay
 floor and bound) and one or more delay specs (:func:`teleopkit.delays.parse_delay`); with
 several, each scenario of a batch draws one of them at random. Every profile must stay inside
-the range.
+the range. The delay modules load when a profile is drawn or checked, so that a command that
+only reads a setup's plant (the closed form's answer) loads no compiled code.
 """
 
 from __future__ import annotations
@@ -11,14 +12,14 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from teleopkit.delays.combinators import StackedDelay
-from teleopkit.delays.profiles import DelayProfile, FourierDelay, delay_floor
-from teleopkit.delays.spec import parse_delay
 from teleopkit.setup.reading import Node, SetupError
+
+if TYPE_CHECKING:
+    from teleopkit.delays.profiles import DelayProfile
 
 __all__ = ["Channel", "Network", "file_digest", "spec_reach"]
 
@@ -27,7 +28,18 @@ _SLACK = 1e-9
 
 
 def file_digest(path: str | Path) -> str:
-    """SHA-256 of a file's bytes, 16 hex digits (what a fingerprint records of a data file)."""
+    """SHA-256 of a file's bytes, 16 hex digits (what a fingerprint records of a data file).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    str
+        The digest.
+    """
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
@@ -65,6 +77,9 @@ def spec_reach(spec: str, direction: int) -> tuple[float, float]:
     (float, float)
         Floor and bound in seconds.
     """
+    from teleopkit.delays.profiles import FourierDelay, delay_floor
+    from teleopkit.delays.spec import parse_delay
+
     if spec == "paper":
         return FourierDelay(0.5).floor, FourierDelay(1.0).bound
     profile = parse_delay(spec, np.random.default_rng(0))[direction]
@@ -159,7 +174,18 @@ class Channel:
                 float(min(self.max, max(high for _, high in reaches))))
 
     def to_data(self, base: Path | None) -> dict[str, Any]:
-        """The channel as setup-file data (``csv:`` paths relative to ``base`` where possible)."""
+        """The channel as setup-file data.
+
+        Parameters
+        ----------
+        base : Path, optional
+            Directory the ``csv:`` paths are written relative to where possible.
+
+        Returns
+        -------
+        dict
+            ``min``, ``max`` and ``profile`` (one spec or a list).
+        """
         specs = [_relative(spec, base) for spec in self.profiles]
         return {"min": self.min, "max": self.max,
                 "profile": specs[0] if len(specs) == 1 else specs}
@@ -190,6 +216,8 @@ class Channel:
         DelayProfile
             One column, or one per scenario.
         """
+        from teleopkit.delays.combinators import StackedDelay
+
         if len(self.profiles) == 1:
             return self._profile(self.profiles[0], rng, batch, direction)
         choice = rng.integers(len(self.profiles), size=batch)
@@ -203,6 +231,10 @@ class Channel:
     def _profile(spec: str, rng: np.random.Generator, batch: int, direction: int,
                  per_scenario: bool = False) -> DelayProfile:
         """One spec's profile for ``batch`` scenarios (``per_scenario``: ``batch`` columns)."""
+        from teleopkit.delays.combinators import StackedDelay
+        from teleopkit.delays.profiles import FourierDelay
+        from teleopkit.delays.spec import parse_delay
+
         if spec == "paper":
             return FourierDelay(rng.uniform(0.5, 1.0, size=batch))
         profile = parse_delay(spec, rng)[direction]
@@ -248,5 +280,18 @@ class Network:
         return self.forward.reach(0)[0], self.backward.reach(1)[0]
 
     def draw(self, rng: np.random.Generator, batch: int) -> tuple[DelayProfile, DelayProfile]:
-        """Forward then backward profiles of ``batch`` scenarios (:meth:`Channel.draw`)."""
+        """Forward then backward profiles of ``batch`` scenarios (:meth:`Channel.draw`).
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the draws.
+        batch : int
+            Scenarios.
+
+        Returns
+        -------
+        tuple of DelayProfile
+            Forward and backward profiles.
+        """
         return self.forward.draw(rng, batch, 0), self.backward.draw(rng, batch, 1)

@@ -58,14 +58,40 @@ class MotionSpec:
 
     @classmethod
     def paper(cls, operator: Operator | None = None) -> MotionSpec:
-        """The paper's motion: ``operator``'s sines (the paper's by default), gains ``0.5-1``."""
+        """The paper's motion: ``operator``'s sines, gains ``0.5-1`` with a random sign.
+
+        Parameters
+        ----------
+        operator : Operator, optional
+            Whose sines; the paper's by default.
+
+        Returns
+        -------
+        MotionSpec
+            A ``sines`` motion.
+        """
         operator = operator if operator is not None else Operator()
         sines = tuple((key, getattr(operator, key)) for key in _SINE_KEYS)
         return cls("sines", (*sines, ("gains", _PAPER_GAINS)))
 
     @classmethod
     def from_node(cls, node: Node, n: int, base: Path | None) -> MotionSpec:
-        """Read an ``operator.motion`` entry for ``n`` joints (paths relative to ``base``)."""
+        """Read an ``operator.motion`` entry.
+
+        Parameters
+        ----------
+        node : Node
+            The entry.
+        n : int
+            Joints of the arm.
+        base : Path, optional
+            Directory that a relative ``csv:`` path starts from.
+
+        Returns
+        -------
+        MotionSpec
+            The motion.
+        """
         if isinstance(node.value, str):
             word, _, rest = node.text().partition(":")
             if word == "paper" and not rest:
@@ -113,7 +139,18 @@ class MotionSpec:
         return cls("csv", (("path", str(path.resolve())),))
 
     def to_data(self, base: Path | None) -> Any:
-        """The motion as setup-file data."""
+        """The motion as setup-file data.
+
+        Parameters
+        ----------
+        base : Path, optional
+            Directory a recorded motion's path is written relative to where possible.
+
+        Returns
+        -------
+        str or dict
+            A name, ``csv:PATH`` or a mapping.
+        """
         if self == MotionSpec.paper():
             return "paper"
         if self.kind == "still":
@@ -215,7 +252,22 @@ class OperatorSetup:
 
     @classmethod
     def from_node(cls, node: Node, n: int, base: Path | None) -> OperatorSetup:
-        """Read the ``operator`` entry for ``n`` joints."""
+        """Read the ``operator`` entry.
+
+        Parameters
+        ----------
+        node : Node
+            The entry (its value None: the defaults).
+        n : int
+            Joints of the arm.
+        base : Path, optional
+            Directory that a relative ``csv:`` path starts from.
+
+        Returns
+        -------
+        OperatorSetup
+            The operator.
+        """
         entries = node.fields(("stiffness", "damping", "motion"))
         motion = (MotionSpec.from_node(entries["motion"], n, base) if "motion" in entries
                   else MotionSpec.paper() if n == 2 else MotionSpec("still"))
@@ -223,10 +275,20 @@ class OperatorSetup:
                    entries["damping"].number(0.0) if "damping" in entries else 2.0, motion)
 
     def model(self, n: int) -> Operator:
-        """The operator of the model for ``n`` joints: its sines, or none (zero amplitudes).
+        """The operator of the model: its sines, or none (zero amplitudes).
 
         A scenario drawn from the setup carries the motion itself; these sines are what a run
         built from the model alone follows.
+
+        Parameters
+        ----------
+        n : int
+            Joints of the arm.
+
+        Returns
+        -------
+        Operator
+            Spring, damper and sines.
         """
         if self.motion.kind == "sines":
             settings = self.motion.settings

@@ -84,7 +84,18 @@ class Node:
         return SetupError(f"{self.path or 'the setup'}: {problem}")
 
     def child(self, key: str | int) -> Node:
-        """The node under ``key`` (a mapping key or a list index)."""
+        """The node under ``key``.
+
+        Parameters
+        ----------
+        key : str or int
+            A mapping key or a list index.
+
+        Returns
+        -------
+        Node
+            The value and its key path.
+        """
         path = f"{self.path}[{key}]" if isinstance(key, int) else (
             f"{self.path}.{key}" if self.path else key)
         return Node(self.value[key], path)

@@ -29,12 +29,10 @@ import math
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from teleopkit.delays.profiles import DelayProfile
-from teleopkit.delays.spec import delay_pair
 from teleopkit.model.params import (
     ElasticJoints,
     PDGains,
@@ -46,9 +44,12 @@ from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import Node, SetupError, load_document
 from teleopkit.setup.start import StartSpec
-from teleopkit.sim.scenarios import Scenario
 
-__all__ = ["PAPER_SETUP_FILE", "Setup"]
+if TYPE_CHECKING:
+    from teleopkit.delays.profiles import DelayProfile
+    from teleopkit.sim.scenarios import Scenario
+
+__all__ = ["PAPER_SETUP_FILE", "Setup", "paper_setup_path"]
 
 PAPER_SETUP_FILE = "paper_setup.yaml"
 """Name of the paper's setup file among the package's data (``teleopkit/data``)."""
@@ -301,7 +302,18 @@ class Setup:
         }
 
     def to_yaml(self, base: str | Path | None = None) -> str:
-        """The setup as the text of a setup file (see :meth:`to_data`)."""
+        """The setup as the text of a setup file.
+
+        Parameters
+        ----------
+        base : str or Path, optional
+            As for :meth:`to_data`.
+
+        Returns
+        -------
+        str
+            YAML.
+        """
         import yaml
 
         return yaml.safe_dump(self.to_data(base), sort_keys=False, default_flow_style=None)
@@ -377,6 +389,9 @@ class Setup:
             The batch (for the paper's setup, the draws of
             :func:`~teleopkit.sim.scenarios.paper_scenarios`).
         """
+        from teleopkit.delays.spec import delay_pair
+        from teleopkit.sim.scenarios import Scenario
+
         if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
             raise ValueError(f"batch must be a whole number of scenarios >= 1, got {batch!r}")
         rng = np.random.default_rng(rng)

@@ -56,13 +56,37 @@ class StartSpec:
 
     @classmethod
     def fixed(cls, initial: InitialState) -> StartSpec:
-        """One start for every scenario."""
+        """One start for every scenario.
+
+        Parameters
+        ----------
+        initial : InitialState
+            The positions.
+
+        Returns
+        -------
+        StartSpec
+            A fixed start.
+        """
         positions = np.array([initial.local, initial.remote, initial.motor])
         return cls(positions, positions)
 
     @classmethod
     def named(cls, name: str, n: int) -> StartSpec | None:
-        """``paper``, ``rest`` or ``aligned`` for ``n`` joints (None for another name)."""
+        """A named start.
+
+        Parameters
+        ----------
+        name : str
+            ``paper``, ``rest`` or ``aligned`` (the first and last for two joints only).
+        n : int
+            Joints.
+
+        Returns
+        -------
+        StartSpec or None
+            The start, or None for another name.
+        """
         if name == "rest":
             return cls(np.zeros((3, n)), np.zeros((3, n)))
         if n != 2 or name not in ("paper", "aligned"):
@@ -73,7 +97,20 @@ class StartSpec:
 
     @classmethod
     def from_node(cls, node: Node, n: int) -> StartSpec:
-        """Read a ``start`` entry for ``n`` joints."""
+        """Read a ``start`` entry.
+
+        Parameters
+        ----------
+        node : Node
+            The entry.
+        n : int
+            Joints.
+
+        Returns
+        -------
+        StartSpec
+            The start.
+        """
         if isinstance(node.value, str):
             spec = cls.named(node.text(), n)
             if spec is None:
@@ -107,7 +144,20 @@ class StartSpec:
         return InitialState(*(tuple(row) for row in middle))
 
     def draw(self, rng: np.random.Generator, batch: int) -> np.ndarray:
-        """Starts of the scenarios: ``(1, 3, n)`` if fixed (no draw), else ``(batch, 3, n)``."""
+        """Starts of the scenarios.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the draws (untouched when the start is fixed).
+        batch : int
+            Scenarios.
+
+        Returns
+        -------
+        ndarray
+            ``(1, 3, n)`` if fixed, else ``(batch, 3, n)``.
+        """
         if self.is_fixed:
             return self.low[None].copy()
         return rng.uniform(self.low, self.high, size=(batch, *self.low.shape))

@@ -36,7 +36,18 @@ class Motion(Protocol):
         """Joints it moves."""
 
     def sample(self, times: np.ndarray) -> np.ndarray:
-        """Reference joint angles ``(S, columns, n)`` at the times ``(S,)``, in radians."""
+        """Reference joint angles at some times.
+
+        Parameters
+        ----------
+        times : ndarray, shape (S,)
+            Times in seconds.
+
+        Returns
+        -------
+        ndarray, shape (S, columns, n)
+            ``q_h`` in radians.
+        """
 
 
 @dataclass(frozen=True, eq=False)
