@@ -13,6 +13,7 @@ ORDER = (
     "plot_gymnasium.py",
     "plot_train_tuner.py",
     "plot_other_rl_library.py",
+    "plot_own_robot.py",
 )
 """Tutorials in reading order; any other tutorial follows them, sorted by file name."""
 

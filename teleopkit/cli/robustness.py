@@ -59,10 +59,18 @@ def _client(workers: int | None, scheduler: str | None) -> str | None:
 @click.option("--resume", is_flag=True,
               help="Continue the campaign whose chunks are in OUT.chunks/ (only missing chunks "
                    "run).")
-def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str | None,
-                     chunk: int, resume: bool) -> int:
-    """Run a robustness campaign (YAML, JSON or TOML SPEC) on Dask; one row per scenario."""
+@setup_option
+@click.pass_context
+def campaign_command(ctx: click.Context, spec: Path, out: Path, workers: int | None,
+                     scheduler: str | None, chunk: int, resume: bool, setup: Setup) -> int:
+    """Run a robustness campaign (YAML, JSON or TOML SPEC) on Dask; one row per scenario.
+
+    The factors vary a setup: --setup FILE, else the spec's key setup, else the paper's.
+    """
     import time
+    from dataclasses import replace
+
+    from click.core import ParameterSource
 
     from teleopkit.robustness.campaign import CampaignInterrupted, run_campaign
     from teleopkit.robustness.spec import CampaignSpec
@@ -71,6 +79,8 @@ def campaign_command(spec: Path, out: Path, workers: int | None, scheduler: str 
     client = _client(workers, scheduler)
     check_output(out, "--out", (".parquet", ".csv"))
     loaded = CampaignSpec.from_file(spec)
+    if ctx.get_parameter_source("setup") is not ParameterSource.DEFAULT:
+        loaded = replace(loaded, setup=setup)
     store = ChunkStore(out)
     if not resume and store.has_chunks():
         raise click.UsageError(f"{store.dir} holds chunks of an earlier run: pass --resume to "

@@ -51,7 +51,7 @@ def _tasks(spec: CampaignSpec, scenarios: pd.DataFrame, chunks: Sequence[np.ndar
         rows = indexed.loc[chunks[k]].reset_index(drop=True)
         used = {c: policies[c] for c in rows["controller"].unique() if c in policies}
         tasks.append(ChunkTask(k, rows, spec.duration, spec.dt, spec.control_period,
-                               spec.divergence_radius, used))
+                               spec.divergence_radius, used, spec.setup))
     return tasks
 
 
@@ -241,7 +241,7 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     spec = _load_spec(spec)
     out = _check_output(out)
     scenarios = spec.expand()
-    check_steps(scenarios, spec.dt, spec.control_period)
+    check_steps(scenarios, spec.dt, spec.control_period, spec.setup.params)
     chunks = plan_chunks(scenarios, chunk)
     store = ChunkStore(out)
     with run_lock(out.with_name(out.name + ".lock"), str(out)), store.kept_if_used():

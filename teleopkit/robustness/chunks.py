@@ -19,8 +19,7 @@ import pandas as pd
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.delays.combinators import scale_delay, stack_delays
-from teleopkit.delays.profiles import DelayProfile, TraceDelay
-from teleopkit.delays.spec import parse_delay
+from teleopkit.delays.profiles import TraceDelay
 from teleopkit.model.params import (
     ElasticJoints,
     PDGains,
@@ -35,7 +34,8 @@ from teleopkit.robustness.spec import reference_gains
 from teleopkit.setup import Setup
 from teleopkit.sim.divergence import Divergence
 from teleopkit.sim.metrics import RunningMetrics
-from teleopkit.sim.scenarios import Scenario, sample_reference_gains
+from teleopkit.sim.motions import RecordedMotion, SineMotion
+from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.stability import check_motor_damping, check_step
 
@@ -48,17 +48,14 @@ METRIC_COLUMNS = ("rms_track", "iae_track", "max_track", "rms_damp", "iae_damp",
 gains, which no safety layer sees)."""
 
 
-def _delay_pair(spec: str, rng: np.random.Generator,
-                traces: Mapping[str, TraceDelay]) -> tuple[DelayProfile, DelayProfile]:
-    if spec in traces:
-        return traces[spec], traces[spec]
-    return parse_delay(spec, rng)
-
-
-def _model_params(row: Mapping[str, Any] | pd.Series) -> TeleoperatorParams:
-    """The paper's teleoperator with the row's model factors."""
-    base = paper_setup()
+def _model_params(row: Mapping[str, Any] | pd.Series, base: TeleoperatorParams
+                  ) -> TeleoperatorParams:
+    """The setup's teleoperator ``base`` with the row's model factors (NaN: the base's own)."""
     n = base.n_joints
+
+    def per_joint(name: str, values: tuple[float, ...]) -> tuple[float, ...]:
+        value = float(row[name])
+        return values if np.isnan(value) else (value,) * n
 
     def arm(source: PlanarArm, scale: float) -> PlanarArm:
         inertia = None if source.inertia is None else tuple(scale * i for i in source.inertia)
@@ -68,12 +65,14 @@ def _model_params(row: Mapping[str, Any] | pd.Series) -> TeleoperatorParams:
         base,
         local_arm=arm(base.local_arm, float(row["local_mass_scale"])),
         remote_arm=arm(base.remote_arm, float(row["remote_mass_scale"])),
-        joints=ElasticJoints((float(row["joint_stiffness"]),) * n,
-                             (float(row["rotor_inertia"]),) * n),
-        local_gains=PDGains.uniform(float(row["kl"]), float(row["bl"]), n))
+        joints=ElasticJoints(per_joint("joint_stiffness", base.joints.stiffness),
+                             per_joint("rotor_inertia", base.joints.rotor_inertia)),
+        local_gains=PDGains(per_joint("kl", base.local_gains.stiffness),
+                            per_joint("bl", base.local_gains.damping)))
 
 
-def check_steps(scenarios: pd.DataFrame, dt: float, control_period: float) -> None:
+def check_steps(scenarios: pd.DataFrame, dt: float, control_period: float,
+                base: TeleoperatorParams | None = None) -> None:
     """Check, before any simulation, that ``dt`` integrates every plant of a campaign stably.
 
     Each distinct combination of the model factors is checked for its local arm's damping
@@ -87,15 +86,18 @@ def check_steps(scenarios: pd.DataFrame, dt: float, control_period: float) -> No
         Integration step in seconds.
     control_period : float
         Gain hold period in seconds (the message proposes a step that divides it).
+    base : TeleoperatorParams, optional
+        The setup's teleoperator the factors apply to; the paper's by default.
 
     Raises
     ------
     ValueError
         One line naming the plant's factors and the largest stable step or gain.
     """
-    for _, rows in scenarios.groupby(list(MODEL_FACTORS), sort=False):
+    base = base if base is not None else paper_setup()
+    for _, rows in scenarios.groupby(list(MODEL_FACTORS), sort=False, dropna=False):
         row = rows.iloc[0]
-        params = _model_params(row)
+        params = _model_params(row, base)
         plant = ", ".join(f"{name}={row[name]:g}" for name in MODEL_FACTORS)
         fixed = rows["br"][rows["controller"] == "fixed"]
         try:
@@ -120,6 +122,9 @@ class ChunkTask:
         Episode settings of the spec.
     policies : mapping of str to GainPolicy
         The trained policies of the chunk's ``policy:`` controllers, keyed by level.
+    setup : Setup
+        The setup whose plant the model factors change and whose operator motions, starts
+        and (for the delay level ``setup``) network the rows draw from their seeds.
     """
 
     chunk: int
@@ -129,17 +134,54 @@ class ChunkTask:
     control_period: float
     divergence_radius: float
     policies: Mapping[str, GainPolicy] = field(default_factory=dict)
+    setup: Setup = field(default_factory=Setup.paper)
 
 
-def _scenario_inputs(row: Mapping[str, Any], n: int, traces: Mapping[str, TraceDelay],
-                     ) -> tuple[DelayProfile, DelayProfile, np.ndarray]:
-    """Forward and backward delays and reference gains of one row, drawn from its seed."""
-    rng = np.random.default_rng(int(row["seed"]))
-    drawn = sample_reference_gains(rng, 1, n)[0]
-    reference = reference_gains(str(row["reference_gain"]), n, drawn)
-    forward, backward = _delay_pair(str(row["delay"]), rng, traces)
+def _row_scenario(row: Mapping[str, Any], setup: Setup, params: TeleoperatorParams,
+                  traces: Mapping[str, TraceDelay]) -> Scenario:
+    """One row's scenario, drawn from its seed as :meth:`Setup.scenarios` draws it.
+
+    The operator motion first, then the delays (the setup's network for the level ``setup``,
+    else the row's spec), then the start; a ``reference_gain`` level other than ``random``
+    replaces the drawn gains, and ``delay_scale`` scales both delays.
+    """
+    spec = str(row["delay"])
+    delay = None if spec == "setup" else (traces[spec], traces[spec]) if spec in traces else spec
+    scenario = replace(setup, params=params).scenarios(int(row["seed"]), 1, delay)
+    reference = reference_gains(str(row["reference_gain"]), params.n_joints,
+                                scenario.reference_gains[0])
     scale = float(row["delay_scale"])
-    return scale_delay(forward, scale), scale_delay(backward, scale), reference
+    return replace(scenario, forward=scale_delay(scenario.forward, scale),
+                   backward=scale_delay(scenario.backward, scale),
+                   reference_gains=reference[None])
+
+
+def _stacked(parts: list[Scenario]) -> Scenario:
+    """Scenarios of one teleoperator side by side (a shared motion stays shared)."""
+    first = parts[0].motion
+    same = all(_same_motion(part.motion, first) for part in parts)
+    if same:
+        motion = first
+    elif all(isinstance(part.motion, SineMotion) for part in parts):
+        motion = SineMotion(*(np.concatenate([getattr(part.motion, name) for part in parts])
+                              for name in ("amplitudes", "frequencies", "phases", "decays")))
+    else:  # pragma: no cover - a setup draws sines or one recorded motion
+        raise ValueError("rows of one batch draw motions that cannot be stacked")
+    return Scenario(parts[0].params, stack_delays([p.forward for p in parts]),
+                    stack_delays([p.backward for p in parts]),
+                    np.vstack([p.reference_gains for p in parts]), motion,
+                    np.concatenate([p.starts for p in parts]))
+
+
+def _same_motion(motion: Any, other: Any) -> bool:
+    """Whether two drawn motions are the same function of time."""
+    if isinstance(motion, RecordedMotion) and isinstance(other, RecordedMotion):
+        return bool(np.array_equal(motion.times, other.times)
+                    and np.array_equal(motion.angles, other.angles))
+    if isinstance(motion, SineMotion) and isinstance(other, SineMotion):
+        return all(np.array_equal(getattr(motion, name), getattr(other, name))
+                   for name in ("amplitudes", "frequencies", "phases", "decays"))
+    return False
 
 
 def _simulate_group(task: ChunkTask, rows: pd.DataFrame,
@@ -147,12 +189,10 @@ def _simulate_group(task: ChunkTask, rows: pd.DataFrame,
     """Simulate scenarios sharing one teleoperator as one batch."""
     start = time.perf_counter()
     records = [{str(k): v for k, v in record.items()} for record in rows.to_dict("records")]
-    params = _model_params(records[0])
+    params = _model_params(records[0], task.setup.params)
     n = params.n_joints
-    forward, backward, reference = zip(*(_scenario_inputs(row, n, traces)
-                                         for row in records), strict=True)
-    scenario = Scenario(params, stack_delays(forward), stack_delays(backward),
-                        np.array(reference))
+    parts = [_row_scenario(row, task.setup, params, traces) for row in records]
+    scenario = _stacked(parts)
     controller = str(records[0]["controller"])
     if controller == "fixed":
         gains = np.repeat(rows[["kr", "br"]].to_numpy(dtype=float), n, axis=1)
@@ -162,7 +202,7 @@ def _simulate_group(task: ChunkTask, rows: pd.DataFrame,
     out = rows.reset_index(drop=True)
     for i in range(n):
         out[f"G_{i + 1}"] = scenario.reference_gains[:, i]
-    out["delay_bound"] = [max(f.bound, b.bound) for f, b in zip(forward, backward, strict=True)]
+    out["delay_bound"] = [max(p.forward.bound, p.backward.bound) for p in parts]
     out = pd.concat([out, metrics], axis=1)
     out["wall_time"] = (time.perf_counter() - start) / len(rows)
     return out
@@ -219,7 +259,7 @@ def simulate_chunk(task: ChunkTask,
     pandas.DataFrame
         The chunk's rows with the result columns, sorted by ``scenario``.
     """
-    groups = task.rows.groupby([*MODEL_FACTORS, "controller"], sort=False)
+    groups = task.rows.groupby([*MODEL_FACTORS, "controller"], sort=False, dropna=False)
     parts = [_simulate_group(task, rows, traces or {}) for _, rows in groups]
     table = pd.concat(parts, ignore_index=True).sort_values("scenario", ignore_index=True)
     table.insert(1, "chunk", np.int64(task.chunk))

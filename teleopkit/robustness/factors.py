@@ -1,6 +1,7 @@
 """The factors of a robustness campaign: what may vary, its type, default and checks.
 
-Factors (:data:`FACTORS`; every column is always present, unset factors hold their default):
+Factors (:data:`FACTORS`; every column is always present, unset factors hold their default, or
+for a setup other than the paper's its own value: see :mod:`teleopkit.robustness.spec`):
 
 ========================  ========  =============================================================
 factor                    default   meaning
@@ -12,7 +13,9 @@ factor                    default   meaning
 ``kl``, ``bl``            25, 10    local P+d gains ``K_l``, ``B_l`` on every joint
 ``delay``                 paper     a spec of :func:`teleopkit.delays.parse_delay` (``paper``,
                                     ``constant:T``, ``sine:M:A:F``, ``switching:LO:HI:DWELL``,
-                                    ``csv:PATH`` relative to the spec file)
+                                    ``csv:PATH`` relative to the spec file), or ``setup``: the
+                                    setup's network (the default for a setup other than the
+                                    paper's)
 ``delay_scale``           1         factor on both delays and their bounds
 ``reference_gain``        random    operator reference gains ``G``: ``random`` (the paper's draw),
                                     one number for every joint, or ``G1,G2``

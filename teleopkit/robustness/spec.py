@@ -14,6 +14,13 @@ Reproducibility: a row is reproduced from its own columns. Its randomness comes 
 row matches ``simulate((kr, br), duration, delay, seed)``. Rows do not depend on the chunk size,
 the number of workers or the scheduler, except ``wall_time`` and ``chunk``.
 
+A campaign varies a setup (:class:`~teleopkit.setup.Setup`; the paper's by default, or the key
+``setup: FILE`` relative to the spec, or ``teleopkit campaign --setup FILE``): the model factors
+change its plant (left out, they keep the setup's own values, shown in their columns when the
+same on every joint, else NaN), each row draws the setup's operator motion and start from its
+seed, and the delay level ``setup`` (the default for a setup other than the paper's) draws the
+setup's network.
+
 Example spec (YAML; JSON and TOML files hold the same keys)::
 
     mode: grid
@@ -42,9 +49,9 @@ import pandas as pd
 
 from teleopkit.delays.profiles import TraceDelay
 from teleopkit.delays.spec import check_trace_ends, parse_delay
-from teleopkit.model.params import paper_setup
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.factors import FACTORS, Factor, factor_dtypes
+from teleopkit.setup import Setup
 from teleopkit.sim.divergence import DIVERGENCE_RADIUS
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
 
@@ -54,7 +61,7 @@ MAX_SCENARIOS = 10_000_000
 """Largest campaign :meth:`CampaignSpec.expand` accepts."""
 
 _SETTINGS = {"mode", "samples", "seed", "duration", "dt", "control_period", "divergence_radius",
-             "factors"}
+             "factors", "setup"}
 
 
 def _setting(name: str, value: Any, kind: type, positive: bool = True) -> Any:
@@ -92,6 +99,8 @@ class CampaignSpec:
         Position magnitude (rad) that counts as divergence.
     base_dir : str
         Directory against which ``csv:PATH`` delay traces are resolved (the spec file's).
+    setup : Setup
+        The setup the factors vary (the paper's by default).
 
     Examples
     --------
@@ -110,6 +119,7 @@ class CampaignSpec:
     control_period: float = CONTROL_PERIOD
     divergence_radius: float = DIVERGENCE_RADIUS
     base_dir: str = ""
+    setup: Setup = field(default_factory=Setup.paper)
     _traces: dict[str, TraceDelay] = field(init=False, repr=False, compare=False,
                                            default_factory=dict)
     _policies: dict[str, GainPolicy] = field(init=False, repr=False, compare=False,
@@ -131,7 +141,7 @@ class CampaignSpec:
         except ValueError as error:
             raise ValueError(f"campaign {error}") from None
         for gain in self.factor("reference_gain").levels:
-            reference_gains(str(gain), paper_setup().n_joints, None)
+            reference_gains(str(gain), self.setup.n_joints, None)
         # the files a campaign needs are read once, here: bad ones are refused before a run
         object.__setattr__(self, "_traces", {
             str(d): _read_trace(str(d), self.base_dir, self.duration)
@@ -180,7 +190,8 @@ class CampaignSpec:
         ----------
         data : mapping
             Keys ``mode``, ``samples``, ``seed``, ``duration``, ``dt``, ``control_period``,
-            ``divergence_radius`` and ``factors`` (a mapping of factor names to values).
+            ``divergence_radius``, ``factors`` (a mapping of factor names to values) and
+            ``setup`` (a setup file relative to ``base_dir``).
         base_dir : str or Path
             Directory of relative ``csv:`` delay traces.
 
@@ -200,7 +211,9 @@ class CampaignSpec:
         if not isinstance(raw, Mapping):
             raise ValueError("campaign factors must be a mapping of factor names to values")
         factors = tuple(Factor.parse(str(name), value) for name, value in raw.items())
-        settings = {key: data[key] for key in _SETTINGS - {"factors"} if key in data}
+        settings = {key: data[key] for key in _SETTINGS - {"factors", "setup"} if key in data}
+        if "setup" in data:
+            settings["setup"] = Setup.from_file(resolve(f"setup:{data['setup']}", str(base_dir)))
         return cls(factors=factors, base_dir=str(base_dir), **settings)
 
     @classmethod
@@ -225,15 +238,17 @@ class CampaignSpec:
             raise ValueError(f"{path}: {error}") from None
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (inverse of :meth:`from_dict`, without ``base_dir``)."""
+        """Plain-data form (inverse of :meth:`from_dict`, without ``base_dir`` and the setup)."""
         return {"mode": self.mode, "samples": self.samples, "seed": self.seed,
                 "duration": self.duration, "dt": self.dt, "control_period": self.control_period,
                 "divergence_radius": self.divergence_radius,
                 "factors": {f.name: f.to_data() for f in self.factors}}
 
     def fingerprint(self) -> str:
-        """SHA-256 of the spec and of the contents of its delay trace and policy files."""
+        """SHA-256 of the spec, its setup and the contents of its delay trace and policy files."""
         digest = hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode())
+        if self.setup != Setup.paper():  # the paper's: the fingerprints of earlier campaigns
+            digest.update(self.setup.fingerprint.encode())
         for name, trace in sorted(self.traces().items()):
             digest.update(name.encode())
             digest.update(np.ascontiguousarray([trace.times, trace.delays]).tobytes())
@@ -271,7 +286,23 @@ class CampaignSpec:
         columns = self._grid() if self.mode == "grid" else self._random()
         table = pd.DataFrame(columns)
         table.insert(0, "scenario", np.arange(len(table), dtype=np.int64))
-        return table.astype(factor_dtypes())
+        return self._setup_defaults(table).astype(factor_dtypes())
+
+    def _setup_defaults(self, table: pd.DataFrame) -> pd.DataFrame:
+        """Columns of the factors left out: the setup's own values where they differ."""
+        if self.setup == Setup.paper():
+            return table
+        given = {factor.name for factor in self.factors}
+        params = self.setup.params
+        values = {"joint_stiffness": params.joints.stiffness,
+                  "rotor_inertia": params.joints.rotor_inertia,
+                  "kl": params.local_gains.stiffness, "bl": params.local_gains.damping}
+        for name, per_joint in values.items():
+            if name not in given:
+                table[name] = per_joint[0] if len(set(per_joint)) == 1 else np.nan
+        if "delay" not in given:
+            table["delay"] = "setup"
+        return table
 
     def _grid(self) -> dict[str, list[Any]]:
         levels = [self.factor(name).levels for name in FACTORS]
@@ -379,6 +410,8 @@ def _check_delay(spec: str) -> bool:
     """Whether a delay level is a ``csv:PATH`` trace; raise if it is no delay spec at all."""
     if spec.startswith("csv:") and spec[4:]:
         return True
+    if spec == "setup":  # the setup's network
+        return False
     parse_delay(spec, np.random.default_rng(0))
     return False
 
