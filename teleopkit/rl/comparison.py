@@ -47,11 +47,13 @@ from teleopkit.rl.baselines import (
 from teleopkit.rl.controllers import ConstantGains, GainSchedule, SemiActiveDamping
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate, rollout
+from teleopkit.rl.features import observation_size
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
-           "evaluation_config", "frozen_counterpart", "policy_certificate", "report_preamble"]
+           "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
+           "report_preamble"]
 
 _log = logging.getLogger(__name__)
 
@@ -105,7 +107,7 @@ def check_covers(certificate: GainCertificate, policy: GainPolicy) -> None:
     if not certificate.variation.covers(trained):
         raise ValueError(f"the certificate's class {certificate.gain_variation} does not cover "
                          f"the policy's class {trained} (it was trained under that class)")
-    expected = _observation_size(certificate)
+    expected = _observation_size(certificate, policy_observation(policy))
     size = policy.obs_mean.size
     if size != expected:
         raise ValueError(f"the policy observes {size} values, the certificate's safety layer "
@@ -136,10 +138,27 @@ def frozen_counterpart(certificate: GainCertificate, params: TeleoperatorParams
                          variation="frozen")
 
 
-def _observation_size(certificate: GainCertificate) -> int:
+def policy_observation(policy: GainPolicy) -> str:
+    """What the policy observes: ``"paper"`` or ``"adaptive"`` (recorded when it was trained).
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        A policy.
+
+    Returns
+    -------
+    str
+        The observation kind of :class:`~teleopkit.rl.env.FlexTeleopConfig`.
+    """
+    return str(policy.metadata.get("observation", "paper"))
+
+
+def _observation_size(certificate: GainCertificate, kind: str) -> int:
     from teleopkit.safety.factory import layer_for
 
-    return 7 * certificate.box.n_joints + layer_for(certificate).run_time_state(1).shape[1]
+    return (observation_size(kind, certificate.box.n_joints)
+            + layer_for(certificate).run_time_state(1).shape[1])
 
 
 @dataclass(frozen=True)
@@ -223,10 +242,32 @@ class Comparators:
         if certificate.variation.covers_changes:
             semi_law = best_semi_active(config, start=own).law
             semi = (semi_law.stiffness, semi_law.low, semi_law.high)
-            _log.info("open-loop schedule: running the tuner on 16 training scenarios")
-            schedule = rollout(policy, 16, BASELINE_SEED, config).applied.mean(axis=1)
-        return cls(certificate.gain_variation, cls.key(certificate, config), reference, own,
-                   semi, schedule)
+        found = cls(certificate.gain_variation, cls.key(certificate, config), reference, own,
+                    semi, schedule)
+        return found.for_policy(policy, config) if semi is not None else found
+
+    def for_policy(self, policy: GainPolicy, config: FlexTeleopConfig) -> Comparators:
+        """These comparators with the open-loop schedule of another tuner of the same class.
+
+        The static gains and the semi-active law depend on the question only; the schedule is
+        the tuner's mean applied gains per control period on 16 training scenarios.
+
+        Parameters
+        ----------
+        policy : GainPolicy
+            The tuner.
+        config : FlexTeleopConfig
+            The settings the comparators were found for (with the tuner's certificate).
+
+        Returns
+        -------
+        Comparators
+            A copy with the tuner's schedule.
+        """
+        _log.info("open-loop schedule: running the tuner on 16 training scenarios")
+        observed = replace(config, observation=policy_observation(policy))
+        schedule = rollout(policy, 16, BASELINE_SEED, observed).applied.mean(axis=1)
+        return replace(self, schedule=schedule)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (for the policy's metadata)."""
@@ -344,7 +385,7 @@ def comparators_for(policy: GainPolicy, certificate: GainCertificate,
     """The comparators of a question: stored with the policy, cached, or searched now.
 
     Searched comparators are cached on disk by their :meth:`Comparators.key` (the setup's
-    fingerprint among it) in the directory of
+    fingerprint among it) and the policy's fingerprint in the directory of
     :func:`~teleopkit.certification.cache.cache_directory`.
 
     Parameters
@@ -371,7 +412,8 @@ def comparators_for(policy: GainPolicy, certificate: GainCertificate,
     if stored is not None:
         return stored
     key = Comparators.key(certificate, config)
-    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    # the open-loop schedule is the policy's own: its fingerprint is part of the file's name
+    digest = hashlib.sha256(f"{key}{policy.fingerprint}".encode()).hexdigest()[:24]
     path = cache_directory() / "comparators" / f"{digest}.json"
     if cache and path.is_file():
         data = json.loads(path.read_text())
@@ -441,7 +483,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
         check_covers(certificate, policy)
     config = evaluation_config(certificate, setup, delay, duration)
     found = comparators or comparators_for(policies[0], certificate, config)
-    rows = {f"TD3 ({certificate.gain_variation})": (list(policies), config),
+    tuner = replace(config, observation=policy_observation(policies[0]))
+    rows = {f"TD3 ({certificate.gain_variation})": (list(policies), tuner),
             **found.controllers(config), **(others or {})}
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}

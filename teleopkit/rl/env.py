@@ -43,6 +43,7 @@ from gymnasium.vector.utils import batch_space
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.model.params import TeleoperatorParams
+from teleopkit.rl.features import AdaptiveObservation, observation_size
 from teleopkit.rl.registration import ENV_ID
 from teleopkit.rl.scoring import RewardWeights, observation, score
 from teleopkit.safety.factory import layer_for
@@ -88,6 +89,10 @@ class FlexTeleopConfig:
         Reward weights.
     state_bound : float
         Largest admissible absolute value of any state entry before termination.
+    observation : {"paper", "adaptive"}
+        What the agent observes: the paper's ``7 n`` values, or
+        :class:`~teleopkit.rl.features.AdaptiveObservation` (``11 n + 1``: link velocity,
+        deflection rate, levels of motion and errors, the measured delay; no integrals).
     failure_penalty : float
         Reward ``-failure_penalty`` on termination: an order of magnitude beyond the discounted
         return of a whole episode at discount 0.99 (about -3000 under ``K_r = 10, B_r = 30``,
@@ -103,6 +108,7 @@ class FlexTeleopConfig:
     weights: RewardWeights = field(default_factory=RewardWeights)
     state_bound: float = 1e3
     failure_penalty: float = 1e5
+    observation: str = "paper"
 
     def __post_init__(self) -> None:
         for name in ("episode_length", "control_period", "dt", "state_bound", "failure_penalty"):
@@ -111,6 +117,7 @@ class FlexTeleopConfig:
                 raise ValueError(f"{name} must be positive and finite, got {value}")
         if round(self.episode_length / self.control_period) < 1:
             raise ValueError("the episode must last at least one control period")
+        observation_size(self.observation, 1)  # refuses an unknown kind
 
     @property
     def max_steps(self) -> int:
@@ -190,6 +197,8 @@ class TeleopBatch:
         self.certificate.check(config.params, *network.reached_bounds, network.reached_floors)
         self.loop = CertifiedLoop(layer_for(self.certificate, config.control_period))
         self.run_time_columns = self.layer.run_time_state(1).shape[1]
+        self.features = (AdaptiveObservation(config.params.n_joints, config.control_period)
+                         if config.observation == "adaptive" else None)
         self.steps = 0
 
     @property
@@ -232,9 +241,14 @@ class TeleopBatch:
         """
         if scenario.batch != self.batch:
             raise ValueError(f"scenario has {scenario.batch} runs, the batch {self.batch}")
-        state = self.loop.start(Simulator(scenario, self.config.dt, self.config.control_period))
+        simulator = Simulator(scenario, self.config.dt, self.config.control_period)
+        state = self.loop.start(simulator)
         self.steps = 0
-        return self._observe(observation(state, StateLayout.of(state).get(state, "ql")))
+        delayed = StateLayout.of(state).get(state, "ql")  # the constant past
+        if self.features is not None:
+            delay = simulator.initial_record().delays[0, :, 0]
+            return self._observe(self.features.start(state, delayed, delay))
+        return self._observe(observation(state, delayed))
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         """The paper's observation, then the safety layer's run-time state (if it keeps one)."""
@@ -262,6 +276,9 @@ class TeleopBatch:
         bound = self.config.state_bound
         obs, reward, failed, failures = score(result.state[0], result.delayed[0, :, 0], applied,
                                               self.config.weights, bound)
+        if self.features is not None:
+            obs = self.features.step(result.state[0], result.delayed[0, :, 0],
+                                     result.delays[0, :, 0])
         obs = self._observe(obs)
         if failures:
             reward[failed] = -self.config.failure_penalty
@@ -286,7 +303,7 @@ def _spaces(config: FlexTeleopConfig, core: TeleopBatch) -> tuple[spaces.Box, sp
     """
     box = core.certificate.box
     limit = 2 * config.state_bound
-    size = 7 * box.n_joints + core.run_time_columns
+    size = observation_size(config.observation, box.n_joints) + core.run_time_columns
     action = spaces.Box(box.lower, box.upper, dtype=np.float64)
     observation = spaces.Box(-limit, limit, shape=(size,), dtype=np.float64)
     return action, observation

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import zipfile
 from collections.abc import Mapping
@@ -118,6 +119,15 @@ class GainPolicy:
                    for m in linears]
         return cls(weights, actor.normalise.mean.numpy(), actor.normalise.std.numpy(),
                    actor.low.numpy(), actor.span.numpy(), metadata)
+
+    @property
+    def fingerprint(self) -> str:
+        """SHA-256 of the weights and maps, 16 hex digits (what the policy computes)."""
+        digest = hashlib.sha256()
+        for array in (*(a for pair in self.weights for a in pair), self.obs_mean, self.obs_std,
+                      self.low, self.span):
+            digest.update(np.ascontiguousarray(array).tobytes())
+        return digest.hexdigest()[:16]
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Raw gains for one observation ``(obs_dim,)`` or a batch ``(B, obs_dim)``."""

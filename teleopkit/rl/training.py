@@ -247,6 +247,7 @@ class _Run:
         data["control_period"] = env_config.control_period
         data["dt"] = env_config.dt
         data["setup"] = env_config.setup.fingerprint
+        data["observation"] = env_config.observation
         return json.loads(json.dumps(data))
 
     def state_dict(self) -> dict[str, Any]:
@@ -393,7 +394,8 @@ class _Run:
         return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds,
                 "gain_variation": self.env.certificate.gain_variation,
                 "certificate": self.env.certificate.to_dict(),
-                "setup": self.env.config.setup.record}
+                "setup": self.env.config.setup.record,
+                "observation": self.env.config.observation}
 
     def policy(self) -> GainPolicy:
         """The current actor with the training settings as metadata."""

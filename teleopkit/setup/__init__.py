@@ -9,7 +9,7 @@ from teleopkit.setup.network import Channel, Network
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import SetupError
 from teleopkit.setup.setup import PAPER_SETUP_FILE, Setup, paper_setup_path
-from teleopkit.setup.start import StartSpec
+from teleopkit.setup.start import StartMix, StartSpec
 
 __all__ = ["PAPER_SETUP_FILE", "Channel", "MotionSpec", "Network", "OperatorSetup", "Setup",
-           "SetupError", "StartSpec", "paper_setup_path"]
+           "SetupError", "StartMix", "StartSpec", "paper_setup_path"]

@@ -12,7 +12,8 @@ Motions (the ``operator.motion`` key of a setup file):
   joint with peak angle, frequencies (Hz) and decay rates drawn from the given ranges
   (:func:`~teleopkit.sim.motions.smooth_motions`);
 - ``csv:PATH``: a recorded motion, columns ``t, q1..qn`` in radians (relative to the setup file);
-- ``still``: the operator holds the arm at the origin.
+- ``still``: the operator holds the arm at the origin;
+- a list of these (but recorded motions): each scenario draws one of them uniformly.
 """
 
 from __future__ import annotations
@@ -40,12 +41,12 @@ class MotionSpec:
 
     Parameters
     ----------
-    kind : {"sines", "smooth", "csv", "still"}
+    kind : {"sines", "smooth", "csv", "still", "mix"}
         The family (``paper`` is ``sines`` with the paper's values).
     values : tuple of (str, object) pairs
         Its settings: for ``sines`` the four per-joint tuples and ``gains``; for ``smooth`` the
         ranges ``amplitude``, ``frequency``, ``decay`` and ``components``; for ``csv`` the
-        absolute ``path``.
+        absolute ``path``; for ``mix`` the ``parts`` (motions, each scenario draws one).
     """
 
     kind: str
@@ -76,7 +77,7 @@ class MotionSpec:
 
     @classmethod
     def from_node(cls, node: Node, n: int, base: Path | None) -> MotionSpec:
-        """Read an ``operator.motion`` entry.
+        """Read an ``operator.motion`` entry (a list: a mix of motions).
 
         Parameters
         ----------
@@ -92,6 +93,11 @@ class MotionSpec:
         MotionSpec
             The motion.
         """
+        if isinstance(node.value, list):
+            parts = tuple(cls.from_node(item, n, base) for item in node.items())
+            if any(part.kind in ("csv", "mix") for part in parts):
+                raise node.error("a list of motions takes paper, still, sines and smooth")
+            return parts[0] if len(parts) == 1 else cls("mix", (("parts", parts),))
         if isinstance(node.value, str):
             word, _, rest = node.text().partition(":")
             if word == "paper" and not rest:
@@ -156,6 +162,8 @@ class MotionSpec:
         if self.kind == "still":
             return "still"
         settings = self.settings
+        if self.kind == "mix":
+            return [part.to_data(base) for part in settings["parts"]]
         if self.kind == "csv":
             path = Path(settings["path"])
             try:
@@ -191,6 +199,8 @@ class MotionSpec:
         """
         settings = self.settings
         ones = np.ones((batch, n))
+        if self.kind == "mix":
+            return _draw_mix(settings["parts"], rng, batch, n)
         if self.kind == "sines":
             low, high = settings["gains"]
             magnitude = rng.uniform(low, high, size=(batch, n))
@@ -225,7 +235,34 @@ class MotionSpec:
                     f" sines per joint at {f_low:g}-{f_high:g} Hz")
         if self.kind == "csv":
             return f"the recorded motion {settings['path']}"
+        if self.kind == "mix":
+            return "one of: " + "; ".join(part.describe() for part in settings["parts"])
         return "the operator holds the origin"
+
+
+def _draw_mix(parts: tuple[MotionSpec, ...], rng: np.random.Generator, batch: int, n: int,
+              ) -> tuple[np.ndarray, SineMotion]:
+    """Each scenario draws one of ``parts`` (all sums of sines): gains and one column each."""
+    choice = rng.integers(len(parts), size=batch)
+    gains = np.ones((batch, n))
+    drawn: list[tuple[np.ndarray, SineMotion]] = []
+    for k, part in enumerate(parts):
+        rows = np.flatnonzero(choice == k)
+        if rows.size:
+            part_gains, motion = part.draw(rng, int(rows.size), n)
+            gains[rows] = part_gains
+            drawn.append((rows, motion))  # type: ignore[arg-type]
+    components = max(motion.amplitudes.shape[1] for _, motion in drawn)
+    arrays = {name: np.zeros((batch, components, n)) for name in _ARRAYS}
+    for rows, motion in drawn:
+        for name in _ARRAYS:
+            values = np.broadcast_to(getattr(motion, name), motion.amplitudes.shape)
+            width = values.shape[1]
+            arrays[name][rows, :width] = values  # one column broadcasts to every row
+    return gains, SineMotion(*(arrays[name] for name in _ARRAYS))
+
+
+_ARRAYS = ("amplitudes", "frequencies", "phases", "decays")
 
 
 def _list(values: tuple[float, ...]) -> str:

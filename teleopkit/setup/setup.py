@@ -43,7 +43,7 @@ from teleopkit.model.params import (
 from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import Node, SetupError, load_document
-from teleopkit.setup.start import StartSpec
+from teleopkit.setup.start import StartMix, StartSpec
 
 if TYPE_CHECKING:
     from teleopkit.delays.profiles import DelayProfile
@@ -143,8 +143,8 @@ class Setup:
         Delay range and profiles of each direction.
     operator : OperatorSetup
         Operator spring, damper and motions.
-    start : StartSpec
-        Initial positions.
+    start : StartSpec or StartMix
+        Initial positions (one start, or several drawn per scenario).
     base : Path, optional
         Directory of the file it was read from (relative ``csv:`` paths start there); not
         part of the setup's identity.
@@ -161,13 +161,13 @@ class Setup:
     params: TeleoperatorParams = field(default_factory=TeleoperatorParams)
     network: Network = field(default_factory=Network)
     operator: OperatorSetup = field(default_factory=OperatorSetup)
-    start: StartSpec = field(default_factory=lambda: StartSpec.fixed(_PAPER.initial))
+    start: StartSpec | StartMix = field(default_factory=lambda: StartSpec.fixed(_PAPER.initial))
     base: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         n = self.params.n_joints
-        if self.start.low.shape[1] != n:
-            raise SetupError(f"start: has {self.start.low.shape[1]} joints, the arm has {n}")
+        if self.start.n_joints != n:
+            raise SetupError(f"start: has {self.start.n_joints} joints, the arm has {n}")
 
     @classmethod
     def paper(cls) -> Setup:
@@ -226,8 +226,8 @@ class Setup:
                     for k, key in enumerate(("forward", "backward"))]
         operator = OperatorSetup.from_node(entries.get("operator", Node(None, "operator")), n,
                                            root)
-        start = StartSpec.from_node(entries.get("start", Node("paper" if n == 2 else "rest",
-                                                              "start")), n)
+        start = StartMix.from_node(entries.get("start", Node("paper" if n == 2 else "rest",
+                                                             "start")), n)
         try:
             params = TeleoperatorParams(
                 **parts, remote_gains=PDGains.uniform(10.0, 30.0, n),

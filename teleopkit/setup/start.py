@@ -4,7 +4,8 @@ The ``start`` key of a setup file is ``paper`` (``q_l = [-0.2, 0.2]``, ``q_r = [
 ``theta_r = 0``), ``rest`` (everything at the origin), ``aligned`` (all three at the paper's
 local start: no tracking error, no spring deflection), or a mapping of ``local``, ``remote``
 and ``motor`` (positions in radians, zero where left out), each a list or a range
-``{min: [...], max: [...]}`` drawn uniformly per scenario. Velocities start at zero.
+``{min: [...], max: [...]}`` drawn uniformly per scenario; or a list of these, each scenario
+drawing one of them (:class:`StartMix`). Velocities start at zero.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from teleopkit.model.params import InitialState
 from teleopkit.setup.reading import Node
 
-__all__ = ["StartSpec"]
+__all__ = ["StartMix", "StartSpec"]
 
 _PARTS = ("local", "remote", "motor")
 _PAPER = InitialState()
@@ -134,6 +135,11 @@ class StartSpec:
         return cls(low, high)
 
     @property
+    def n_joints(self) -> int:
+        """Joints."""
+        return int(self.low.shape[1])
+
+    @property
     def is_fixed(self) -> bool:
         """Whether every scenario starts at the same positions."""
         return bool(np.array_equal(self.low, self.high))
@@ -180,3 +186,83 @@ class StartSpec:
             return {"paper": "the paper's start", "rest": "at rest at the origin",
                     "aligned": "aligned (no tracking error, no spring deflection)"}[data]
         return "fixed positions" if self.is_fixed else "random starts drawn per scenario"
+
+
+@dataclass(frozen=True)
+class StartMix:
+    """Several starts, each scenario drawing one of them uniformly.
+
+    Parameters
+    ----------
+    parts : tuple of StartSpec
+        The starts (at least two, same number of joints).
+    """
+
+    parts: tuple[StartSpec, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.parts) < 2 or len({part.n_joints for part in self.parts}) != 1:
+            raise ValueError("a mix of starts needs two or more starts of the same joints")
+
+    @classmethod
+    def from_node(cls, node: Node, n: int) -> StartSpec | StartMix:
+        """Read a ``start`` entry: one start, or a list of them.
+
+        Parameters
+        ----------
+        node : Node
+            The entry.
+        n : int
+            Joints.
+
+        Returns
+        -------
+        StartSpec or StartMix
+            The start(s).
+        """
+        if not isinstance(node.value, list):
+            return StartSpec.from_node(node, n)
+        parts = tuple(StartSpec.from_node(item, n) for item in node.items())
+        return parts[0] if len(parts) == 1 else cls(parts)
+
+    @property
+    def n_joints(self) -> int:
+        """Joints."""
+        return self.parts[0].n_joints
+
+    @property
+    def is_fixed(self) -> bool:
+        """Whether every scenario starts at the same positions (never, for a mix)."""
+        return False
+
+    def initial(self) -> InitialState:
+        """The start of the model: the first part's."""
+        return self.parts[0].initial()
+
+    def draw(self, rng: np.random.Generator, batch: int) -> np.ndarray:
+        """Starts of the scenarios, ``(batch, 3, n)``.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the draws: the part of each scenario, then its positions.
+        batch : int
+            Scenarios.
+
+        Returns
+        -------
+        ndarray, shape (batch, 3, n)
+            ``q_l(0), q_r(0), theta_r(0)`` of each scenario.
+        """
+        choice = rng.integers(len(self.parts), size=batch)
+        low = np.stack([self.parts[k].low for k in choice])
+        high = np.stack([self.parts[k].high for k in choice])
+        return rng.uniform(low, high)
+
+    def to_data(self) -> list[Any]:
+        """The starts as setup-file data (a list)."""
+        return [part.to_data() for part in self.parts]
+
+    def describe(self) -> str:
+        """One line for people."""
+        return "one of: " + "; ".join(part.describe() for part in self.parts)

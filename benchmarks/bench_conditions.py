@@ -1,0 +1,212 @@
+"""Tuners across condition families, each against comparators searched for that family.
+
+Run from the repository root (a few minutes per family; comparators are cached)::
+
+    python benchmarks/bench_conditions.py [--policies covered FILE ...] [--families NAME ...]
+        [--scenarios 32] [--out runs/conditions]
+
+Every family is a setup (plant, network, operator, start) that differs from the paper's in one
+way. For each family and tuner it runs ``compare``: the tuner, the best constant gains of the
+frozen class on its certificate's box (``best static``, the reference), those of the tuner's
+class, the tuned semi-active law and the tuner's own mean schedule replayed open loop, all
+searched for that family on its training scenarios (never on the held-out ones), on the same
+held-out scenarios. It prints, per family and tuner, the mean cost and the paired differences
+(per scenario, mean and standard error) against the family's best static gains of both classes
+and the tuner's open-loop schedule, with the cost split into the first 2 s and the rest, and
+writes ``per_scenario.csv`` and ``summary.csv`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.model.params import PlanarArm, Wall
+from teleopkit.rl.comparison import (
+    REFERENCE,
+    comparators_for,
+    compare,
+    evaluation_config,
+    policy_certificate,
+)
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.setup import MotionSpec, Network, Setup, StartSpec
+from teleopkit.setup.network import Channel
+from teleopkit.setup.operator import OperatorSetup
+
+PAPER = Setup.paper()
+
+
+def _motion(kind: str, **settings: object) -> Callable[[Setup], Setup]:
+    def change(setup: Setup) -> Setup:
+        motion = MotionSpec(kind, tuple(settings.items()))
+        operator = OperatorSetup(setup.operator.stiffness, setup.operator.damping, motion)
+        return replace(setup, operator=operator, params=replace(
+            setup.params, operator=operator.model(setup.n_joints)))
+    return change
+
+
+def _sines(scale: float = 1.0, speed: float = 1.0, decays: tuple[float, float] = (0.05, 0.04),
+           ) -> Callable[[Setup], Setup]:
+    return _motion("sines", amplitudes=(3.0 * scale, 2.5 * scale),
+                   frequencies=(1.0 * speed, 1.6 * speed), phases=(0.0, 0.05), decays=decays,
+                   gains=(0.5, 1.0))
+
+
+def _start(name: str | None = None, spread: float = 0.0) -> Callable[[Setup], Setup]:
+    def change(setup: Setup) -> Setup:
+        if name is not None:
+            start = StartSpec.named(name, 2)
+        else:
+            start = StartSpec(np.full((3, 2), -spread), np.full((3, 2), spread))
+        assert start is not None
+        return replace(setup, start=start, params=replace(setup.params,
+                                                          initial=start.initial()))
+    return change
+
+
+def _delays(spec: str) -> Callable[[Setup], Setup]:
+    return lambda setup: setup.with_delay(spec)
+
+
+def _plant(setup: Setup) -> Setup:
+    arm = setup.params.remote_arm
+    heavier = PlanarArm(arm.lengths, tuple(1.5 * m for m in arm.masses))
+    params = replace(setup.params, remote_arm=heavier,
+                     joints=replace(setup.params.joints, stiffness=(60.0, 60.0)))
+    return replace(setup, params=params)
+
+
+def _wall(setup: Setup) -> Setup:
+    return replace(setup, params=replace(setup.params, environment=Wall((0.5, math.inf))))
+
+
+def _trace(folder: Path) -> Callable[[Setup], Setup]:
+    """A network-like trace: a slow random walk with jitter and rare spikes, 0.3-1 s."""
+    def change(setup: Setup) -> Setup:
+        rng = np.random.default_rng(11)
+        t = np.arange(0.0, 60.0, 0.02)
+        walk = np.cumsum(rng.normal(0.0, 0.01, t.size))
+        spikes = (rng.random(t.size) < 0.005) * rng.uniform(0.1, 0.3, t.size)
+        delay = np.clip(0.6 + walk - walk.mean() + rng.normal(0.0, 0.02, t.size) + spikes,
+                        0.3, 1.0)
+        path = folder / "trace.csv"
+        pd.DataFrame({"t": t, "delay": delay}).to_csv(path, index=False)
+        channel = Channel(0.0, 1.0, (f"csv:{path.resolve()}",))
+        return replace(setup, network=Network(channel, channel))
+    return change
+
+
+def families(folder: Path) -> dict[str, Setup]:
+    """The condition families, each the paper's setup changed in one way (or two)."""
+    def both(*changes: Callable[[Setup], Setup]) -> Setup:
+        setup = PAPER
+        for change in changes:
+            setup = change(setup)
+        return setup
+
+    still = (0.0, 0.0)
+    return {
+        "paper benchmark": PAPER,
+        "operator that does not decay": both(_sines(decays=still)),
+        "larger operator amplitudes": both(_sines(scale=1.5)),
+        "faster operator x2": both(_sines(speed=2.0)),
+        "faster operator x3": both(_sines(speed=3.0)),
+        "random smooth operator": both(_motion("smooth", amplitude=(0.3, 1.5),
+                                               frequency=(0.1, 1.0), decay=(0.0, 0.0),
+                                               components=3)),
+        "start at rest": both(_start("rest")),
+        "start without deflection": both(_start("aligned")),
+        "random starts": both(_start(spread=0.5)),
+        "wall, operator that does not decay": both(_wall, _sines(decays=still)),
+        "heavier, softer remote arm": both(_plant),
+        "constant delays 0.3 s": both(_delays("constant:0.3")),
+        "switching delays 0-1 s": both(_delays("switching:0:1:50ms")),
+        "recorded-style delay trace": both(_trace(folder)),
+    }
+
+
+def _paired(table: pd.DataFrame, tuner: str, other: str, column: str) -> tuple[float, float]:
+    """Mean and standard error of ``tuner - other`` over the scenarios, in % of ``other``."""
+    a = table[table["controller"] == tuner].groupby("scenario")[column].mean()
+    b = table[table["controller"] == other].groupby("scenario")[column].mean()
+    diff = (a - b).dropna()
+    scale = float(b.mean())
+    return (100 * float(diff.mean()) / scale,
+            100 * float(diff.std(ddof=1)) / math.sqrt(len(diff)) / scale)
+
+
+def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios: int,
+               ) -> tuple[pd.DataFrame, list[dict[str, object]]]:
+    """Every tuner on one family: per-scenario rows and the summary rows."""
+    frames, rows = [], []
+    first = next(iter(tuners.values()))
+    variation = policy_certificate(first).gain_variation
+    certificate = default_certificate(setup.params, setup.network.reached_bounds, variation)
+    config = evaluation_config(certificate, setup)
+    found = comparators_for(first, certificate, config)
+    label = f"TD3 ({variation})"
+    for tuner_name, policy in tuners.items():
+        comparators = found if policy is first else found.for_policy(policy, config)
+        table = compare([policy], scenarios, certificate=certificate, setup=setup,
+                        comparators=comparators, progress=False)
+        table = table.assign(family=name, tuner=tuner_name)
+        frames.append(table)
+        mean = table.groupby("controller")[["cost", "cost_opening", "cost_rest"]].mean()
+        row: dict[str, object] = {"family": name, "tuner": tuner_name,
+                                  "cost": mean.loc[label, "cost"],
+                                  "best static": mean.loc[REFERENCE, "cost"]}
+        for other, short in ((REFERENCE, "vs static"),
+                             (f"best static ({variation})", "vs class static"),
+                             (f"open-loop ({variation})", "vs open loop")):
+            if other in mean.index:
+                row[short], row[short + " se"] = _paired(table, label, other, "cost")
+        row["opening saved"] = mean.loc[REFERENCE, "cost_opening"] - mean.loc[label, "cost_opening"]
+        row["rest saved"] = mean.loc[REFERENCE, "cost_rest"] - mean.loc[label, "cost_rest"]
+        row["static gains"] = " ".join(f"{g:.3g}" for g in comparators.frozen_static)
+        rows.append(row)
+        print(f"{name:38s} {tuner_name:12s} cost {row['cost']:9.1f}  vs static "
+              f"{row['vs static']:+6.1f} % (se {row['vs static se']:.1f})  vs open loop "
+              f"{row.get('vs open loop', float('nan')):+6.1f} %", flush=True)
+    return pd.concat(frames, ignore_index=True), rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--policies", nargs="+", default=["covered"],
+                        help="shipped policy names or policy files (the first sets the class)")
+    parser.add_argument("--families", nargs="+", default=None, help="family names (default all)")
+    parser.add_argument("--scenarios", type=int, default=32)
+    parser.add_argument("--out", type=Path, default=Path("runs/conditions"))
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    tuners = {Path(p).stem if Path(p).suffix else p: GainPolicy.load(p) for p in args.policies}
+    chosen = families(args.out)
+    names = args.families or list(chosen)
+    frames, rows = [], []
+    for name in names:
+        table, summary = run_family(name, chosen[name], tuners, args.scenarios)
+        frames.append(table)
+        rows += summary
+    pd.concat(frames).to_csv(args.out / "per_scenario.csv", index=False)
+    summary = pd.DataFrame(rows)
+    summary.to_csv(args.out / "summary.csv", index=False)
+    print(summary.round(2).to_string(index=False))
+    for tuner, part in summary.groupby("tuner", sort=False):
+        worst = part.loc[part["vs static"].idxmax()]
+        print(f"{tuner}: mean vs static {part['vs static'].mean():+.1f} %, worst "
+              f"{worst['vs static']:+.1f} % ({worst['family']}), mean vs open loop "
+              f"{part['vs open loop'].mean():+.1f} %")
+
+
+if __name__ == "__main__":
+    main()
