@@ -49,11 +49,17 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
                    "box (K_r in [1, 50], B_r in [1, 150]) for the delays the setup's network "
                    "reaches [default: the recipe's covering class, "
                    "teleopkit.rl.training.COVERING_CLASS].")
+@click.option("--observation", type=click.Choice(["paper", "adaptive"]), default="paper",
+              show_default=True,
+              help="What the tuner observes: the paper's 7 values per joint, or the adaptive "
+                   "observation (link velocity, deflection rate, levels of motion and errors, "
+                   "the measured delay; no integrals: teleopkit.rl.features).")
 @certificate_option
 @setup_option
 @click.pass_context
 def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Path, resume: bool,
-                  variation: object, certificate: Path | None, setup: Setup) -> None:
+                  variation: object, observation: str, certificate: Path | None,
+                  setup: Setup) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
     Episodes draw their scenarios from the setup (--setup; the paper's by default): its
@@ -80,7 +86,7 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
         raise click.BadParameter(f"{out / CHECKPOINT} exists; pass --resume to continue it or "
                                  "choose another directory", param_hint="'--out'")
     check_unlocked(out / LOCK, str(out))  # before anything is printed
-    env_config = FlexTeleopConfig(setup)
+    env_config = FlexTeleopConfig(setup, observation=observation)
     chosen = _training_certificate(out, resume, variation, certificate, env_config)
     recipe = _training_config(ctx, out, resume, steps, envs, seed)
     per_round = recipe.num_envs * FlexTeleopConfig().max_steps

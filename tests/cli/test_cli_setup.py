@@ -34,7 +34,7 @@ def teleopkit(*args: str) -> subprocess.CompletedProcess[str]:
 
 @pytest.fixture
 def arm_file(tmp_path):
-    t = np.arange(0, 11.0, 0.05)
+    t = np.arange(0, 45.0, 0.05)
     pd.DataFrame({"t": t, "delay": 0.3 + 0.25 * np.cos(0.4 * t)}).to_csv(tmp_path / "back.csv",
                                                                        index=False)
     path = tmp_path / "arm.yaml"
@@ -87,3 +87,16 @@ def test_a_bad_setup_file_is_one_line_and_exit_2(tmp_path):
                      str(tmp_path / "x.csv"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
     assert "start: unknown start 'paper' for 1 joints" in done.stderr
+
+
+def test_train_records_the_setup_and_the_observation(arm_file, tmp_path):
+    out = tmp_path / "run"
+    done = teleopkit("train", "--setup", str(arm_file), "--steps", "10", "--envs", "1",
+                     "--observation", "adaptive", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    from teleopkit.rl.policy import GainPolicy
+
+    policy = GainPolicy.load(out / "policy.npz")
+    assert policy.metadata["observation"] == "adaptive"
+    assert policy.metadata["setup"] == Setup.from_file(arm_file).record
+    assert policy.metadata["certificate"]["delay_bounds"] == [0.5, 0.55]  # what the net reaches
