@@ -26,6 +26,7 @@ __all__ = [
     "PlanarArm",
     "TeleoperatorParams",
     "Wall",
+    "json_ready",
     "one_joint_setup",
     "paper_setup",
     "plant_mismatch",
@@ -448,12 +449,23 @@ _PLANT_LABELS = {
 }
 
 
-def _plain(value: Any) -> Any:
-    """JSON-safe floats: ``inf`` as the string ``"inf"``, tuples as lists."""
+def json_ready(value: Any) -> Any:
+    """JSON-safe data: tuples as lists, infinite floats as the strings ``"inf"``, ``"-inf"``.
+
+    Parameters
+    ----------
+    value : object
+        Nested dicts, lists, tuples and scalars.
+
+    Returns
+    -------
+    object
+        The same structure, JSON-ready.
+    """
     if isinstance(value, dict):
-        return {key: _plain(item) for key, item in value.items()}
+        return {key: json_ready(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
-        return [_plain(item) for item in value]
+        return [json_ready(item) for item in value]
     if isinstance(value, float) and not math.isfinite(value):
         return "inf" if value > 0 else "-inf"
     return value
@@ -492,7 +504,7 @@ def plant_record(params: TeleoperatorParams) -> dict[str, Any]:
         "environment": (asdict(params.environment) if isinstance(params.environment, Wall)
                         else params.environment),
     }
-    record = _plain(record)
+    record = json_ready(record)
     digest = hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()[:16]
     return {**record, "fingerprint": digest}
 
@@ -536,7 +548,7 @@ def plant_mismatch(certified: Mapping[str, Any], params: TeleoperatorParams) -> 
 
 
 def _floats(value: Any) -> Any:
-    """Inverse of :func:`_plain` on numbers: ``"inf"`` back to a float."""
+    """Inverse of :func:`json_ready` on numbers: ``"inf"`` back to a float."""
     if isinstance(value, dict):
         return {key: _floats(item) for key, item in value.items()}
     if isinstance(value, list):

@@ -535,8 +535,9 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
     lines = [
         "# Comparison of gain controllers",
         "",
-        f"Every row ran the same {scenarios} held-out scenarios (seed {seed}; operator motions, "
-        f"delays and starts no training saw; delays: {delay}), {duration:g} s each, "
+        f"Every row ran the same {scenarios} held-out scenarios (seed {seed}, which no "
+        "training or search used, draws what the setup leaves random: operator motions, "
+        f"delays, starts; delays: {delay}), {duration:g} s each, "
         f"every applied gain projected by the safety layer of the row's certificate. `{tuner}` "
         f"is the trained tuner ({policies} polic{'y' if policies == 1 else 'ies'}); "
         f"`{REFERENCE}` the best constant gains of the frozen class on the certificate's box "

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -39,6 +38,7 @@ from teleopkit.model.params import (
     PlanarArm,
     TeleoperatorParams,
     Wall,
+    json_ready,
 )
 from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
@@ -112,17 +112,6 @@ def _plant(node: Node) -> dict[str, Any]:
         "torque_limit": limit.number(0.0, strict=True, allow_inf=True) if limit is not None
         else _PAPER.torque_limit,
     }
-
-
-def _plain(value: Any) -> Any:
-    """YAML- and JSON-safe data: tuples as lists, infinities as ``inf`` strings for JSON."""
-    if isinstance(value, dict):
-        return {key: _plain(item) for key, item in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(item) for item in value]
-    if isinstance(value, float) and math.isinf(value):
-        return "inf" if value > 0 else "-inf"
-    return value
 
 
 @dataclass(frozen=True)
@@ -337,7 +326,7 @@ class Setup:
         """The setup as JSON-ready data with absolute paths and the digests of its data files."""
         digests = (self.network.forward.digests() + self.network.backward.digests()
                    + self.operator.motion.digests())
-        return {**_plain(self.to_data()), "data_files": digests}
+        return {**json_ready(self.to_data()), "data_files": digests}
 
     @property
     def fingerprint(self) -> str:
