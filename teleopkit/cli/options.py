@@ -26,7 +26,8 @@ if TYPE_CHECKING:
 
 __all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
            "check_output_dir", "delay_spec", "gain_variation", "gains",
-           "progress", "read_certificate", "read_setup", "setup_option", "single_thread"]
+           "progress", "read_certificate", "read_setup", "require_torch", "setup_option",
+           "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
@@ -303,6 +304,18 @@ def setup_option(function: Any) -> Any:
         callback=read_setup,
         help="Setup file (YAML: plant, network, operator, start; see teleopkit setup) "
              "[default: the paper's].")(function)
+
+
+def require_torch() -> None:
+    """Refuse, in one line, a command that trains when PyTorch is not installed.
+
+    Evaluating and reproducing run numpy policies; training is the extra ``teleopkit[train]``.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise click.ClickException("training needs PyTorch, an optional dependency: "
+                                   "pip install 'teleopkit[train]'")
 
 
 def single_thread() -> None:

@@ -17,6 +17,7 @@ from teleopkit.cli.options import (
     delay_spec,
     gain_variation,
     read_certificate,
+    require_torch,
     setup_option,
     single_thread,
 )
@@ -71,6 +72,7 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     learning rates 1e-3 and discount 0.95, best policy kept by validation cost; the first round
     explores with uniform random gains.
     """
+    require_torch()
     from teleopkit.files import check_unlocked
     from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.training import CHECKPOINT, LOCK, train

@@ -234,17 +234,38 @@ class Comparators:
             The comparators.
         """
         config = replace(config or FlexTeleopConfig(), certificate=certificate)
+        static = cls.find_static(certificate, config)
+        return static.for_policy(policy, config) if static.semi_active is not None else static
+
+    @classmethod
+    def find_static(cls, certificate: GainCertificate, config: FlexTeleopConfig
+                    ) -> Comparators:
+        """Search the comparators that do not depend on the tuner (no open-loop schedule).
+
+        Parameters
+        ----------
+        certificate : GainCertificate
+            The certificate the tuner runs under.
+        config : FlexTeleopConfig
+            Setup and episode settings (the certificate replaces its own).
+
+        Returns
+        -------
+        Comparators
+            Best static gains of both classes and, for a class that lets the damping switch,
+            the semi-active law; ``schedule`` is None (:meth:`for_policy` adds it).
+        """
+        config = replace(config, certificate=certificate)
         frozen = replace(config, certificate=frozen_counterpart(certificate, config.params))
         reference = best_static_gains(config=frozen).gains
         same = frozen.certificate is certificate
         own = reference if same else best_static_gains(config=config).gains
-        semi, schedule = None, None
+        semi = None
         if certificate.variation.covers_changes:
             semi_law = best_semi_active(config, start=own).law
             semi = (semi_law.stiffness, semi_law.low, semi_law.high)
-        found = cls(certificate.gain_variation, cls.key(certificate, config), reference, own,
-                    semi, schedule)
-        return found.for_policy(policy, config) if semi is not None else found
+        return cls(certificate.gain_variation, cls.key(certificate, config), reference, own,
+                   semi, None)
 
     def for_policy(self, policy: GainPolicy, config: FlexTeleopConfig) -> Comparators:
         """These comparators with the open-loop schedule of another tuner of the same class.
@@ -384,8 +405,8 @@ def comparators_for(policy: GainPolicy, certificate: GainCertificate,
                     on_search: Callable[[], None] | None = None) -> Comparators:
     """The comparators of a question: stored with the policy, cached, or searched now.
 
-    Searched comparators are cached on disk by their :meth:`Comparators.key` (the setup's
-    fingerprint among it) and the policy's fingerprint in the directory of
+    The comparators that do not depend on the tuner are cached on disk by their
+    :meth:`Comparators.key` (the setup's fingerprint among it) in the directory of
     :func:`~teleopkit.certification.cache.cache_directory`.
 
     Parameters
@@ -412,25 +433,26 @@ def comparators_for(policy: GainPolicy, certificate: GainCertificate,
     if stored is not None:
         return stored
     key = Comparators.key(certificate, config)
-    # the open-loop schedule is the policy's own: its fingerprint is part of the file's name
-    digest = hashlib.sha256(f"{key}{policy.fingerprint}".encode()).hexdigest()[:24]
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
     path = cache_directory() / "comparators" / f"{digest}.json"
-    if cache and path.is_file():
-        data = json.loads(path.read_text())
-        if data.get("fingerprint") == key:
-            return Comparators.from_dict(data)
-    if on_search is not None:
-        on_search()
-    _log.info("finding the comparators of %s for setup %s (a few minutes)",
-              certificate.gain_variation, config.setup.fingerprint)
-    found = Comparators.find(policy, certificate, config)
-    if cache:
-        from teleopkit.files import atomic_write
+    data = json.loads(path.read_text()) if cache and path.is_file() else {}
+    if data.get("fingerprint") == key:
+        static = Comparators.from_dict(data)
+    else:
+        if on_search is not None:
+            on_search()
+        _log.info("finding the comparators of %s for setup %s (a few minutes)",
+                  certificate.gain_variation, config.setup.fingerprint)
+        static = Comparators.find_static(certificate, config)
+        if cache:
+            from teleopkit.files import atomic_write
 
-        path.parent.mkdir(parents=True, exist_ok=True)
-        text = json.dumps(found.to_dict())
-        atomic_write(path, lambda tmp: tmp.write_text(text))
-    return found
+            path.parent.mkdir(parents=True, exist_ok=True)
+            text = json.dumps(static.to_dict())
+            atomic_write(path, lambda tmp: tmp.write_text(text))
+    # the open-loop schedule is the policy's own: run it each time (one rollout)
+    config = replace(config, certificate=certificate)
+    return static.for_policy(policy, config) if static.semi_active is not None else static
 
 
 @reports_progress

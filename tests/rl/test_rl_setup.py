@@ -18,12 +18,12 @@ def test_comparators_are_searched_for_the_setup_given_and_cached_by_its_fingerpr
         policy, monkeypatch):
     searched = []
 
-    def find(cls, tuner, certificate, config):
+    def find_static(cls, certificate, config):
         searched.append(config.setup)
         static = np.array([1.0, 2.0, 3.0, 4.0]) * len(searched)
         return cls("frozen", cls.key(certificate, config), static, static, None, None)
 
-    monkeypatch.setattr(Comparators, "find", classmethod(find))
+    monkeypatch.setattr(Comparators, "find_static", classmethod(find_static))
     policy.metadata.pop("comparators", None)
     certificate = default_certificate()
     paper = comparators_for(policy, certificate, evaluation_config(certificate))
