@@ -16,21 +16,29 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import cvxpy as cp
 import numpy as np
 import scipy.sparse
 
-from certify.blocks import form_matrix
+from certify.blocks import Form, form_matrix
 from certify.channels import Channels
-from certify.system import PolytopicDelaySystem
-from certify.uncertainty import factor
+from certify.system import LinearDelaySystem, PolytopicDelaySystem
+from certify.uncertainty import Direction, factor
 
-if TYPE_CHECKING:
-    from certify.conditions import LMIMethod
 
-__all__ = ["SystemData", "dynamics_scale", "eliminable_rows", "relation_kernel", "system_data"]
+class Posed(Protocol):
+    """What this module needs of an LMI method (:class:`certify.conditions.LMIMethod`)."""
+
+    def blocks(self, ch: Channels, mu: float | None) -> dict[str, int]:
+        """Names and dimensions of the blocks of the augmented vector."""
+
+    def dynamics(self, vertex: LinearDelaySystem | Direction, ch: Channels) -> Form:
+        """Form ``Gamma`` with ``Gamma xi = 0`` along solutions of ``vertex``."""
+
+__all__ = ["Posed", "SystemData", "dynamics_scale", "eliminable_rows", "relation_kernel",
+           "system_data"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,13 +173,13 @@ def dynamics_scale(system: PolytopicDelaySystem) -> float:
     return max(float(np.finfo(np.float64).tiny), *(float(np.abs(m).max()) for m in mats))
 
 
-def system_data(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
+def system_data(method: Posed, system: PolytopicDelaySystem, ch: Channels,
                 mu: float | None, eliminated: Sequence[int] | None = None) -> SystemData:
     """The numbers of ``system`` that the LMIs of ``method`` depend on.
 
     Parameters
     ----------
-    method : LMIMethod
+    method : Posed
         The method (its augmented vector and descriptor relation).
     system : PolytopicDelaySystem
         The system.
@@ -313,13 +321,13 @@ def relation_kernel(relations: Sequence[np.ndarray], left: np.ndarray, n: int,
     return kernel
 
 
-def parameter_factors(method: LMIMethod, system: PolytopicDelaySystem, ch: Channels,
+def parameter_factors(method: Posed, system: PolytopicDelaySystem, ch: Channels,
                       mu: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Rank factors ``(G, H, owner)`` of the system's affine uncertainty in a method.
 
     Parameters
     ----------
-    method : LMIMethod
+    method : Posed
         The method.
     system : PolytopicDelaySystem
         The system.

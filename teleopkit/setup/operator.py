@@ -215,7 +215,8 @@ class MotionSpec:
                                         settings["components"])
         if self.kind == "csv":
             return ones, RecordedMotion.from_csv(settings["path"])
-        return ones, SineMotion(np.zeros((1, 1, n)), 0.0, 0.0, 0.0)
+        zeros = np.zeros((1, 1, n))
+        return ones, SineMotion(zeros, zeros, zeros, zeros)
 
     def describe(self) -> str:
         """One line for people."""

@@ -7,7 +7,7 @@ the peak positions the divergence criterion (:mod:`teleopkit.sim.divergence`) re
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -17,9 +17,23 @@ from teleopkit.sim.state import StateLayout
 if TYPE_CHECKING:
     import pandas as pd
 
-    from teleopkit.sim.trajectory import StepResult
+__all__ = ["Periods", "RunningMetrics", "error_metrics"]
 
-__all__ = ["RunningMetrics", "error_metrics"]
+
+class Periods(Protocol):
+    """What :meth:`RunningMetrics.add` reads of simulated periods (a ``StepResult``)."""
+
+    @property
+    def t(self) -> np.ndarray:
+        """End times of the periods ``(P,)``."""
+
+    @property
+    def state(self) -> np.ndarray:
+        """States at those times ``(P, B, 12 n)``."""
+
+    @property
+    def delayed(self) -> np.ndarray:
+        """Delayed signals ``(P, B, 2, n)``."""
 
 
 def error_metrics(t: np.ndarray, errors: dict[str, np.ndarray]) -> pd.DataFrame:
@@ -77,13 +91,13 @@ class RunningMetrics:
         return np.stack([np.linalg.norm(theta - delayed_ql, axis=-1),
                          np.linalg.norm(theta - self.layout.get(state, "qr"), axis=-1)])
 
-    def add(self, step: StepResult) -> None:
+    def add(self, step: Periods) -> None:
         """Accumulate the periods of ``step``.
 
         Parameters
         ----------
-        step : StepResult
-            The next periods of the run.
+        step : Periods
+            The next periods of the run (times, states, delayed signals).
         """
         norms = self._norms(step.state, step.delayed[..., 0, :])  # (2, P, B)
         values = np.concatenate([self.last[:, None], norms], axis=1)

@@ -9,6 +9,7 @@ starts and delays per scenario).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -121,7 +122,13 @@ class Scenario:
     @property
     def starts(self) -> np.ndarray:
         """Initial positions ``(B, 3, n)``: ``q_l(0), q_r(0), theta_r(0)`` of each scenario."""
-        return np.broadcast_to(self.start, (self.batch, *self.start.shape[1:]))
+        start = cast(np.ndarray, self.start)  # set in __post_init__
+        return np.broadcast_to(start, (self.batch, *start.shape[1:]))
+
+    @property
+    def reference_motion(self) -> Motion:
+        """The operator motion (``motion``, or the sines of ``params.operator``)."""
+        return cast(Motion, self.motion)  # set in __post_init__
 
     def repeat(self, times: int) -> Scenario:
         """The batch repeated ``times`` times along the batch axis (one copy per candidate).

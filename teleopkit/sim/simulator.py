@@ -152,7 +152,7 @@ class Simulator:
     @property
     def _input_columns(self) -> int:
         """Columns of sampled inputs: the delays' or the operator motion's, the larger."""
-        return max(self._delay_columns, self.scenario.motion.columns)
+        return max(self._delay_columns, self.scenario.reference_motion.columns)
 
     @property
     def time(self) -> float:
@@ -232,7 +232,7 @@ class Simulator:
                 delays[:, c, 0], scale[c] = cast(_Factored, profile).factors(times)
             else:
                 delays[:, c] = profile.sample(times)
-        return delays, scale, self.scenario.motion.sample(times)
+        return delays, scale, self.scenario.reference_motion.sample(times)
 
     def advance(self, gains: np.ndarray) -> StepResult:
         """Simulate ``P`` control periods with the given remote gains.
