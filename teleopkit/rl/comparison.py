@@ -44,7 +44,12 @@ from teleopkit.rl.baselines import (
     best_static_gains,
     fixed_gains,
 )
-from teleopkit.rl.controllers import ConstantGains, GainSchedule, SemiActiveDamping
+from teleopkit.rl.controllers import (
+    ConstantGains,
+    GainSchedule,
+    HeldController,
+    SemiActiveDamping,
+)
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate, rollout
 from teleopkit.rl.features import observation_size
@@ -53,7 +58,7 @@ from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
-           "report_preamble"]
+           "report_preamble", "tuner_controller"]
 
 _log = logging.getLogger(__name__)
 
@@ -152,6 +157,23 @@ def policy_observation(policy: GainPolicy) -> str:
         The observation kind of :class:`~teleopkit.rl.env.FlexTeleopConfig`.
     """
     return str(policy.metadata.get("observation", "paper"))
+
+
+def tuner_controller(policy: GainPolicy) -> Controller:
+    """The policy as it plays in evaluation: held over its decision period when it has one.
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        A policy (its metadata's ``decision_period``, 1 when absent).
+
+    Returns
+    -------
+    Controller
+        The policy, or a :class:`~teleopkit.rl.controllers.HeldController` of it.
+    """
+    periods = int(policy.metadata.get("decision_period", 1))
+    return policy if periods == 1 else HeldController(policy, periods)
 
 
 def _observation_size(certificate: GainCertificate, kind: str) -> int:
@@ -287,7 +309,8 @@ class Comparators:
         """
         _log.info("open-loop schedule: running the tuner on 16 training scenarios")
         observed = replace(config, observation=policy_observation(policy))
-        schedule = rollout(policy, 16, BASELINE_SEED, observed).applied.mean(axis=1)
+        schedule = rollout(tuner_controller(policy), 16, BASELINE_SEED,
+                           observed).applied.mean(axis=1)
         return replace(self, schedule=schedule)
 
     def to_dict(self) -> dict[str, Any]:
@@ -506,7 +529,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     config = evaluation_config(certificate, setup, delay, duration)
     found = comparators or comparators_for(policies[0], certificate, config)
     tuner = replace(config, observation=policy_observation(policies[0]))
-    rows = {f"TD3 ({certificate.gain_variation})": (list(policies), tuner),
+    rows = {f"TD3 ({certificate.gain_variation})": ([tuner_controller(p) for p in policies],
+                                                     tuner),
             **found.controllers(config), **(others or {})}
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}

@@ -9,9 +9,12 @@ A controller maps the observations of a batch of scenarios to raw gains ``[K_r..
   damping ``B_high`` while the spring deflection ``e_damp = theta_r - q_r`` grows in magnitude,
   the low damping ``B_low`` while it shrinks;
 - :class:`GainSchedule`: gains as a function of time alone, replayed open loop (for example a
-  tuner's mean schedule over training scenarios).
+  tuner's mean schedule over training scenarios);
 
-The last two keep state over an episode; :func:`~teleopkit.rl.evaluation.rollout` calls their
+and :class:`HeldController`, which holds another controller's gains over several periods (a
+tuner trained to decide every ``k`` control periods).
+
+The last three keep state over an episode; :func:`~teleopkit.rl.evaluation.rollout` calls their
 ``reset()`` before the first step. Observations are read by the blocks of
 :data:`~teleopkit.rl.scoring.OBSERVATION`; the run-time columns a scheduled class appends are
 ignored.
@@ -19,13 +22,14 @@ ignored.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from teleopkit.rl.scoring import OBSERVATION
 
-__all__ = ["ConstantGains", "GainSchedule", "SemiActiveDamping"]
+__all__ = ["ConstantGains", "GainSchedule", "HeldController", "SemiActiveDamping"]
 
 _DAMP = OBSERVATION.index("e_damp")
 
@@ -120,3 +124,39 @@ class GainSchedule:
         row = self.gains[min(self._step, len(self.gains) - 1)]
         self._step += 1
         return np.tile(row, (len(obs), 1))
+
+
+@dataclass
+class HeldController:
+    """Another controller asked every ``periods`` control periods, its gains held in between.
+
+    Parameters
+    ----------
+    controller : callable
+        Observations ``(B, obs_dim)`` to raw gains ``(B, 2 n)`` (a reset() is passed on).
+    periods : int
+        Control periods per decision.
+    """
+
+    controller: Callable[[np.ndarray], np.ndarray]
+    periods: int
+    _count: int = field(default=0, init=False, repr=False)
+    _gains: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.periods < 1:
+            raise ValueError(f"a held controller decides every periods >= 1, got {self.periods}")
+
+    def reset(self) -> None:
+        """Start an episode: the next call asks the controller."""
+        self._count = 0
+        reset = getattr(self.controller, "reset", None)
+        if callable(reset):
+            reset()
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The controller's gains at a decision, else the gains held since the last one."""
+        if self._gains is None or self._count % self.periods == 0:
+            self._gains = np.asarray(self.controller(obs), dtype=float)
+        self._count += 1
+        return self._gains

@@ -89,6 +89,11 @@ class FlexTeleopConfig:
         Reward weights.
     state_bound : float
         Largest admissible absolute value of any state entry before termination.
+    decision_period : int
+        Control periods per agent decision: the agent's gains are held (and projected every
+        period) over that many periods, and its reward is their sum. A tuner trained with
+        ``k > 1`` plays through :class:`~teleopkit.rl.controllers.HeldController` in evaluation,
+        so that every row's cost is summed over the same 10 ms periods.
     observation : {"paper", "adaptive"}
         What the agent observes: the paper's ``7 n`` values, or
         :class:`~teleopkit.rl.features.AdaptiveObservation` (``11 n + 1``: link velocity,
@@ -109,6 +114,7 @@ class FlexTeleopConfig:
     state_bound: float = 1e3
     failure_penalty: float = 1e5
     observation: str = "paper"
+    decision_period: int = 1
 
     def __post_init__(self) -> None:
         for name in ("episode_length", "control_period", "dt", "state_bound", "failure_penalty"):
@@ -118,11 +124,15 @@ class FlexTeleopConfig:
         if round(self.episode_length / self.control_period) < 1:
             raise ValueError("the episode must last at least one control period")
         observation_size(self.observation, 1)  # refuses an unknown kind
+        periods = round(self.episode_length / self.control_period)
+        if self.decision_period < 1 or periods % self.decision_period:
+            raise ValueError(f"decision_period must be a whole number >= 1 of control periods "
+                             f"that divides the episode's {periods}, got {self.decision_period}")
 
     @property
     def max_steps(self) -> int:
-        """Control periods per episode."""
-        return round(self.episode_length / self.control_period)
+        """Agent decisions per episode (control periods divided by ``decision_period``)."""
+        return round(self.episode_length / self.control_period) // self.decision_period
 
     @property
     def params(self) -> TeleoperatorParams:
@@ -257,7 +267,10 @@ class TeleopBatch:
         return np.concatenate([obs, self.layer.run_time_state(self.batch)], axis=1)
 
     def step(self, raw: np.ndarray) -> BatchStep:
-        """Project, simulate and score one period.
+        """Project, simulate and score one decision: ``decision_period`` control periods.
+
+        The raw gains are held and projected every period; the reward is the periods' sum, the
+        observation, result and info those of the last period (``applied_action`` the first's).
 
         Parameters
         ----------
@@ -270,15 +283,21 @@ class TeleopBatch:
             Observations, rewards, terminations, truncations, info and the simulated period.
         """
         raw = np.array(raw, dtype=np.float64).reshape(self.batch, -1)
-        result, projection = self.loop.step(raw)
-        applied = projection.action
-        self.steps += 1
         bound = self.config.state_bound
-        obs, reward, failed, failures = score(result.state[0], result.delayed[0, :, 0], applied,
-                                              self.config.weights, bound)
-        if self.features is not None:
-            obs = self.features.step(result.state[0], result.delayed[0, :, 0],
-                                     result.delays[0, :, 0])
+        reward = np.zeros(self.batch)
+        for period in range(self.config.decision_period):
+            result, projection = self.loop.step(raw)
+            if period == 0:
+                applied = projection.action
+            obs, gained, failed, failures = score(result.state[0], result.delayed[0, :, 0],
+                                                  projection.action, self.config.weights, bound)
+            reward += gained
+            if self.features is not None:
+                obs = self.features.step(result.state[0], result.delayed[0, :, 0],
+                                         result.delays[0, :, 0])
+            if failures:
+                break
+        self.steps += 1
         obs = self._observe(obs)
         if failures:
             reward[failed] = -self.config.failure_penalty

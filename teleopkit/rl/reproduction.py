@@ -23,7 +23,9 @@ from teleopkit.rl.comparison import (
     compare,
     evaluation_config,
     policy_certificate,
+    policy_observation,
     report_preamble,
+    tuner_controller,
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
@@ -106,7 +108,8 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
                           tuner=tuner)
     _log.info("reproduction: running the episodes of the figures")
     frozen = replace(config, certificate=None)
-    runs = {tuner: rollout(covered, 1, seed, config).to_frame(),
+    played = replace(config, observation=policy_observation(covered))
+    runs = {tuner: rollout(tuner_controller(covered), 1, seed, played).to_frame(),
             PAPER_TUNER: rollout(paper, 1, seed, frozen).to_frame(),
             REFERENCE: rollout(ConstantGains(comparators.frozen_static), 1, seed,
                                frozen).to_frame()}

@@ -48,6 +48,7 @@ import torch
 from gymnasium.spaces import Box
 
 from teleopkit.files import atomic_write, run_lock
+from teleopkit.rl.controllers import HeldController
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer
@@ -248,6 +249,7 @@ class _Run:
         data["dt"] = env_config.dt
         data["setup"] = env_config.setup.fingerprint
         data["observation"] = env_config.observation
+        data["decision_period"] = env_config.decision_period
         return json.loads(json.dumps(data))
 
     def state_dict(self) -> dict[str, Any]:
@@ -365,8 +367,11 @@ class _Run:
             return math.nan
         from teleopkit.rl.evaluation import rollout
 
-        run = rollout(self.agent.policy(), self.config.validation_scenarios,
-                      self.config.validation_seed, self.env.config)
+        periods = self.env.config.decision_period
+        actor = self.agent.policy()
+        controller = actor if periods == 1 else HeldController(actor, periods)
+        run = rollout(controller, self.config.validation_scenarios, self.config.validation_seed,
+                      replace(self.env.config, decision_period=1))
         cost = float(run.metrics()["cost"].mean())
         self.counters.unsafe_actions += run.unsafe_actions
         if cost < self.counters.best_validation:
@@ -395,7 +400,8 @@ class _Run:
                 "gain_variation": self.env.certificate.gain_variation,
                 "certificate": self.env.certificate.to_dict(),
                 "setup": self.env.config.setup.record,
-                "observation": self.env.config.observation}
+                "observation": self.env.config.observation,
+                "decision_period": self.env.config.decision_period}
 
     def policy(self) -> GainPolicy:
         """The current actor with the training settings as metadata."""

@@ -47,3 +47,28 @@ def test_the_environment_observes_what_its_space_says():
     assert obs.shape == (3, *env.single_observation_space.shape)
     obs, *_ = env.step(np.tile([5.0, 5.0, 20.0, 20.0], (3, 1)))
     assert obs.shape == (3, *env.single_observation_space.shape)
+
+
+def test_a_decision_holds_the_gains_and_sums_the_periods_rewards():
+    from teleopkit.rl.controllers import ConstantGains, HeldController
+    from teleopkit.rl.evaluation import rollout
+
+    gains = np.array([5.0, 5.0, 20.0, 20.0])
+    fine = FlexTeleopVectorEnv(2, FlexTeleopConfig(episode_length=0.2))
+    coarse = FlexTeleopVectorEnv(2, FlexTeleopConfig(episode_length=0.2, decision_period=5))
+    fine.reset(seed=3)
+    coarse.reset(seed=3)
+    assert coarse.config.max_steps == 4
+    summed = sum(fine.step(np.tile(gains, (2, 1)))[1] for _ in range(5))
+    np.testing.assert_allclose(coarse.step(np.tile(gains, (2, 1)))[1], summed, rtol=1e-12)
+    asked = []
+
+    def rising(obs):
+        asked.append(len(asked))
+        return np.tile(gains + len(asked), (len(obs), 1))
+
+    run = rollout(HeldController(rising, 5), 2, 3, FlexTeleopConfig(episode_length=0.2))
+    assert len(asked) == 4  # 20 periods, a decision every 5
+    np.testing.assert_array_equal(run.raw[:, 0, 0], np.repeat(gains[0] + np.arange(1, 5), 5))
+    steady = rollout(ConstantGains(gains + 1), 2, 3, FlexTeleopConfig(episode_length=0.2))
+    np.testing.assert_allclose(run.reward[:5], steady.reward[:5], rtol=1e-12)
