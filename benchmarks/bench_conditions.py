@@ -86,7 +86,8 @@ def _plant(setup: Setup) -> Setup:
 
 
 def _wall(setup: Setup) -> Setup:
-    return replace(setup, params=replace(setup.params, environment=Wall((0.5, math.inf))))
+    """A stiff wall the remote link's first joint meets at 0.03 rad (it swings about 0.07 rad)."""
+    return replace(setup, params=replace(setup.params, environment=Wall((0.03, math.inf))))
 
 
 def _trace(folder: Path) -> Callable[[Setup], Setup]:

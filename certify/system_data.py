@@ -32,10 +32,36 @@ class Posed(Protocol):
     """What this module needs of an LMI method (:class:`certify.conditions.LMIMethod`)."""
 
     def blocks(self, ch: Channels, mu: float | None) -> dict[str, int]:
-        """Names and dimensions of the blocks of the augmented vector."""
+        """Names and dimensions of the blocks of the augmented vector.
+
+        Parameters
+        ----------
+        ch : Channels
+            The delay channels.
+        mu : float or None
+            Bound on the delays' derivative (None: unknown).
+
+        Returns
+        -------
+        dict of str to int
+            Block sizes.
+        """
 
     def dynamics(self, vertex: LinearDelaySystem | Direction, ch: Channels) -> Form:
-        """Form ``Gamma`` with ``Gamma xi = 0`` along solutions of ``vertex``."""
+        """Form ``Gamma`` with ``Gamma xi = 0`` along solutions of ``vertex``.
+
+        Parameters
+        ----------
+        vertex : LinearDelaySystem or Direction
+            A vertex system, or a direction of an uncertainty.
+        ch : Channels
+            The delay channels.
+
+        Returns
+        -------
+        Form
+            The relation's blocks.
+        """
 
 __all__ = ["Posed", "SystemData", "dynamics_scale", "eliminable_rows", "relation_kernel",
            "system_data"]
