@@ -184,7 +184,7 @@ def memory_per_scenario(batch: int, periods: int, dt: float) -> int:
     arrays = (sampled.times, sampled.delays, sampled.scale, sampled.unit)
     inputs = sum(a.nbytes for a in arrays) // batch + periods * 4 * 8  # and the gains
     outputs = periods * (sim.layout.size + 4 + 2) * 8  # state, delayed signals, delays
-    return (sim._x.nbytes + sim._hist.nbytes + sim._initial.nbytes) // batch + inputs + outputs
+    return sim.state_bytes // batch + inputs + outputs
 
 
 def main() -> None:

@@ -21,8 +21,7 @@ from teleopkit.delays.jumps import has_jumps, sample_left
 from teleopkit.delays.profiles import DelayProfile
 from teleopkit.delays.spec import check_duration
 from teleopkit.model.params import TeleoperatorParams
-from teleopkit.sim import kernel
-from teleopkit.sim.numpy_integrator import NumpyIntegrator
+from teleopkit.sim.backends import Backend, CompiledBackend, NumpyBackend, constant_past
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.stability import check_motor_damping, check_step
 from teleopkit.sim.state import StateLayout
@@ -51,7 +50,7 @@ if TYPE_CHECKING:
 
     from teleopkit.setup import Setup
 
-Backend = Literal["compiled", "numpy"]
+BackendName = Literal["compiled", "numpy"]
 
 
 class _Factored(Protocol):
@@ -115,7 +114,7 @@ class Simulator:
     """
 
     def __init__(self, scenario: Scenario, dt: float = DEFAULT_DT,
-                 control_period: float = CONTROL_PERIOD, backend: Backend = "compiled") -> None:
+                 control_period: float = CONTROL_PERIOD, backend: BackendName = "compiled") -> None:
         self.substeps = substeps(control_period, dt)
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
@@ -132,7 +131,6 @@ class Simulator:
         self.control_period = control_period
         self.backend = backend
         self.layout = StateLayout(scenario.params.n_joints)
-        self._model = kernel.kernel_model(scenario.params)
         self._inputs: _Inputs | None = None
         self.reset()
 
@@ -162,39 +160,30 @@ class Simulator:
     @property
     def state(self) -> np.ndarray:
         """Current state, shape ``(B, 12 n)`` (a copy)."""
-        return (self._numpy.state if self._numpy else self._x).copy()
+        return self._backend.state.copy()
+
+    @property
+    def state_bytes(self) -> int:
+        """Memory of the integration state (states and channel histories) in bytes."""
+        return self._backend.nbytes
 
     def initial_state(self) -> np.ndarray:
         """State at ``t = 0``: the scenarios' initial positions, zero velocities and integrals."""
         starts = self.scenario.starts
         return self.layout.pack(self.batch, ql=starts[:, 0], qr=starts[:, 1], theta=starts[:, 2])
 
-    def _constant_past(self, x: np.ndarray) -> np.ndarray:
-        """What each channel delivers before its first sample, shape ``(B, 2, n)``."""
-        return np.stack([self.layout.channel(x, c)[0] for c in (0, 1)], axis=1)
-
     def reset(self) -> None:
         """Return to ``t = 0`` with the initial state and an empty history."""
         self._step = 0
-        x = self.initial_state()
-        n = self.n_joints
-        length = math.ceil(self.scenario.delay_bound / self.dt) + 2
-        self._numpy: NumpyIntegrator | None = None
-        if self.backend == "numpy":
-            self._numpy = NumpyIntegrator(self.scenario.params, x, self.dt, self.substeps,
-                                          self.scenario.delay_bound)
-            return
-        self._x = x
-        self._initial = self._constant_past(x)
-        # reads before t = 0 take the constant past, so only step 0 (slot 0) needs a value
-        self._hist = np.zeros((self.batch, 2, length, 2 * n))
-        self._hist[:, :, 0, :n] = self._initial
+        kind = NumpyBackend if self.backend == "numpy" else CompiledBackend
+        self._backend: Backend = kind(self.scenario.params, self.initial_state(), self.dt,
+                                      self.substeps, self.scenario.delay_bound)
 
     def initial_record(self) -> StepResult:
         """The record at ``t = 0`` (the delayed signals are the constant past)."""
         x = self.initial_state()
         delays, _ = self.sample_inputs(np.zeros(1))
-        return StepResult(np.zeros(1), x[None], self._constant_past(x)[None], delays)
+        return StepResult(np.zeros(1), x[None], constant_past(x)[None], delays)
 
     def sample_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Delays ``(S, B, 2)`` and operator reference ``(S, B, n)`` at the times ``(S,)``.
@@ -320,17 +309,8 @@ class Simulator:
         ends = slice(ROWS_PER_STEP * self.substeps, None, ROWS_PER_STEP * self.substeps)
         out.t[:] = inputs.times[ends]
         np.multiply(inputs.delays[ends], scale, out=out.delays.transpose(0, 2, 1))
-        reference_gains = self.scenario.reference_gains
-        if self._numpy is not None:
-            out.state[:], out.delayed[:] = self._numpy.advance(
-                (inputs.delays * scale).transpose(0, 2, 1),
-                reference_gains[None] * inputs.unit, gains,
-                (inputs.left * scale).transpose(0, 2, 1) if self._jumps else None)
-        else:
-            kernel.advance(self._x, self._hist, self._initial, self._step, self.dt,
-                           self.substeps, inputs.delays, scale, inputs.left, inputs.unit,
-                           reference_gains, np.ascontiguousarray(gains), self._model, out.state,
-                           out.delayed)
+        self._backend.advance(self._step, inputs.delays, scale, inputs.left, inputs.unit,
+                              self.scenario.reference_gains, gains, out.state, out.delayed)
         self._step += periods * self.substeps
 
     def record_bytes(self, periods: int) -> int:
