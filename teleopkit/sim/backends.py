@@ -114,7 +114,13 @@ class CompiledBackend:
     def advance(self, step: int, delays: np.ndarray, scale: np.ndarray, left: np.ndarray,
                 unit: np.ndarray, reference_gains: np.ndarray, gains: np.ndarray,
                 out_state: np.ndarray, out_delayed: np.ndarray) -> None:
-        """Integrate with the kernel (see :meth:`Backend.advance`)."""
+        """Integrate with the kernel.
+
+        Parameters
+        ----------
+        step, delays, scale, left, unit, reference_gains, gains, out_state, out_delayed
+            As for :meth:`Backend.advance`.
+        """
         kernel.advance(self._state, self.history, self.initial, step, self.dt, self.substeps,
                        delays, scale, left, unit, reference_gains, np.ascontiguousarray(gains),
                        self.model, out_state, out_delayed)
@@ -148,7 +154,13 @@ class NumpyBackend:
     def advance(self, step: int, delays: np.ndarray, scale: np.ndarray, left: np.ndarray,
                 unit: np.ndarray, reference_gains: np.ndarray, gains: np.ndarray,
                 out_state: np.ndarray, out_delayed: np.ndarray) -> None:
-        """Integrate in numpy, on the delays and reference multiplied out."""
+        """Integrate in numpy, on the delays and reference multiplied out.
+
+        Parameters
+        ----------
+        step, delays, scale, left, unit, reference_gains, gains, out_state, out_delayed
+            As for :meth:`Backend.advance`.
+        """
         out_state[:], out_delayed[:] = self.integrator.advance(
             (delays * scale).transpose(0, 2, 1), reference_gains[None] * unit, gains,
             (left * scale).transpose(0, 2, 1) if left.shape[0] else None)
