@@ -23,7 +23,7 @@ step's interval of ``kappa``. No distances are compared, so near-ties cannot pic
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -32,7 +32,8 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.safety.layer import FLAGS, Projection, SafetyLayer, kkt_polish
 
-__all__ = ["BUDGET", "TANK", "ScheduleLayer", "project_scheduled"]
+__all__ = ["BUDGET", "TANK", "ScheduleLayer", "ScheduleReport", "ScheduleSettings",
+           "ScheduleState", "project_scheduled"]
 
 BUDGET, TANK = 0, 1
 """Run-time modes of the kernel: a log budget of falls, or an energy tank."""
@@ -72,105 +73,188 @@ def _minimiser(raw: np.ndarray, shape: np.ndarray, rho: np.ndarray, beta: np.nda
     return start  # not reached: the last piece ends at infinity
 
 
-@njit(**_OPTIONS)
-def project_scheduled(raw: np.ndarray, out: np.ndarray, flags: np.ndarray, distance: np.ndarray,
-                      floor: np.ndarray, active: np.ndarray, tol: float, shape: np.ndarray,
-                      rho: np.ndarray, beta: np.ndarray,
-                      b_lo: np.ndarray, b_hi: np.ndarray, kappa_lo: float, kappa_hi: float,
-                      prev: np.ndarray, level: np.ndarray, energy: np.ndarray, mode: int,
-                      refill: float, centre: np.ndarray, kinks: np.ndarray,
-                      order: np.ndarray) -> None:
-    """Project a batch of raw actions onto the step's set and update the run-time state.
+class ScheduleSettings(NamedTuple):
+    """The class's static set and rules (a NamedTuple: numba compiles it as a record).
 
-    Parameters
+    Attributes
     ----------
-    raw : ndarray, shape (B, 2 n)
-        Raw actions (NaN and inf allowed: the previous action is applied again, or ``centre``
-        at the first step).
-    out : ndarray, shape (B, 2 n)
-        Receives the applied actions.
-    flags : ndarray of int, shape (B,)
-        Receives 1 where the raw action was not finite, else 0.
-    distance : ndarray, shape (B,)
-        Receives ``||out - raw||`` (``inf`` for a non-finite raw action).
-    floor : ndarray, shape (B,)
-        Receives the floor of ``kappa`` in force at this step.
-    active : ndarray of bool, shape (B, 3 + 3 n)
-        Receives which constraints hold with equality (within ``tol`` relative): the floor, the
-        two ends of ``kappa``'s interval, the damping box's lower and upper ends, the cones.
-    tol : float
-        Relative tolerance of the report.
     shape, rho, beta, b_lo, b_hi : ndarray, shape (n,)
         The common shape, the cone ``B_r^i >= rho_i s_i kappa + beta_i`` and the damping box.
     kappa_lo, kappa_hi : float
         The static interval of ``kappa``.
-    prev : ndarray, shape (B, 2 n)
-        The action applied at the previous step (NaN at the first); updated to ``out``.
-    level : ndarray, shape (B,)
-        Budget left (mode :data:`BUDGET`) or tank level (mode :data:`TANK`); updated.
-    energy : ndarray, shape (B,)
-        The remote energy ``E_r`` measured at this sample (tank mode).
     mode : int
         :data:`BUDGET` or :data:`TANK`.
     refill : float
         Fraction of the storage released by a rise of ``kappa`` that refills the tank.
     centre : ndarray, shape (2 n,)
         An interior action, applied when nothing finite is available.
+    tol : float
+        Relative tolerance of the active-constraint report.
+    """
+
+    shape: np.ndarray
+    rho: np.ndarray
+    beta: np.ndarray
+    b_lo: np.ndarray
+    b_hi: np.ndarray
+    kappa_lo: float
+    kappa_hi: float
+    mode: int
+    refill: float
+    centre: np.ndarray
+    tol: float
+
+
+class ScheduleState(NamedTuple):
+    """The run-time state of a batch's episodes, updated in place by :func:`project_scheduled`.
+
+    Attributes
+    ----------
+    prev : ndarray, shape (B, 2 n)
+        The action applied at the previous step (NaN before the first).
+    level : ndarray, shape (B,)
+        Budget left (:data:`BUDGET`) or tank level (:data:`TANK`).
+    energy : ndarray, shape (B,)
+        The remote energy ``E_r`` measured at this sample (tank mode).
+    """
+
+    prev: np.ndarray
+    level: np.ndarray
+    energy: np.ndarray
+
+
+class ScheduleReport(NamedTuple):
+    """What :func:`project_scheduled` writes for each row of a batch.
+
+    Attributes
+    ----------
+    out : ndarray, shape (B, 2 n)
+        The applied actions.
+    flags : ndarray of int, shape (B,)
+        1 where the raw action was not finite, else 0.
+    distance : ndarray, shape (B,)
+        ``||out - raw||`` (``inf`` for a non-finite raw action).
+    floor : ndarray, shape (B,)
+        The floor of ``kappa`` in force at this step.
+    active : ndarray of bool, shape (B, 3 + 3 n)
+        Constraints that hold with equality (within ``tol`` relative): the floor, the two ends
+        of ``kappa``'s interval, the damping box's lower and upper ends, the cones.
+    """
+
+    out: np.ndarray
+    flags: np.ndarray
+    distance: np.ndarray
+    floor: np.ndarray
+    active: np.ndarray
+
+    @classmethod
+    def empty(cls, batch: int, n_joints: int) -> ScheduleReport:
+        """Uninitialised arrays for ``batch`` rows of ``n_joints`` joints."""
+        return cls(np.empty((batch, 2 * n_joints)), np.empty(batch, dtype=np.int64),
+                   np.empty(batch), np.empty(batch),
+                   np.empty((batch, 3 + 3 * n_joints), dtype=np.bool_))
+
+
+@njit(forceinline=True, **_OPTIONS)
+def _floor(settings: ScheduleSettings, state: ScheduleState, b: int, previous: float) -> float:
+    """The step's lowest ``kappa`` of row ``b`` (the static one before the first step)."""
+    low = settings.kappa_lo
+    if not math.isfinite(previous):
+        return low
+    if settings.mode == BUDGET:
+        low = max(low, previous * math.exp(-state.level[b]))
+    elif state.energy[b] > 0.0:
+        low = max(low, 1.0 / (1.0 / previous + state.level[b] / state.energy[b]))
+    return min(low, previous)  # the previous kappa is always allowed again
+
+
+@njit(forceinline=True, **_OPTIONS)
+def _spend(settings: ScheduleSettings, state: ScheduleState, b: int, previous: float,
+           kappa: float) -> None:
+    """Charge a change of ``kappa`` of row ``b`` to its budget or tank (rises refill a tank)."""
+    if not math.isfinite(previous) or kappa == previous:
+        return
+    if settings.mode == BUDGET:
+        state.level[b] = max(0.0, state.level[b] - max(0.0, math.log(previous / kappa)))
+        return
+    change = state.energy[b] * (1.0 / kappa - 1.0 / previous)
+    state.level[b] = (max(0.0, state.level[b] - change) if change > 0
+                      else state.level[b] - settings.refill * change)
+
+
+@njit(forceinline=True, **_OPTIONS)
+def _report_active(settings: ScheduleSettings, report: ScheduleReport, b: int, kappa: float,
+                   low: float) -> None:
+    """Which constraints row ``b``'s applied action meets with equality."""
+    n = settings.shape.size
+    tol = settings.tol
+    near = tol * (1.0 + abs(kappa))
+    report.active[b, 0] = abs(kappa - low) <= near
+    report.active[b, 1] = abs(kappa - settings.kappa_lo) <= near
+    report.active[b, 2] = abs(kappa - settings.kappa_hi) <= near
+    for i in range(n):
+        damping = report.out[b, n + i]
+        near = tol * (1.0 + abs(damping))
+        report.active[b, 3 + i] = abs(damping - settings.b_lo[i]) <= near
+        report.active[b, 3 + n + i] = abs(damping - settings.b_hi[i]) <= near
+        cone = settings.rho[i] * settings.shape[i] * kappa + settings.beta[i]
+        report.active[b, 3 + 2 * n + i] = abs(damping - cone) <= near
+
+
+@njit(**_OPTIONS)
+def project_scheduled(raw: np.ndarray, settings: ScheduleSettings, state: ScheduleState,
+                      report: ScheduleReport, kinks: np.ndarray, order: np.ndarray) -> None:
+    """Project a batch of raw actions onto the step's set and update the run-time state.
+
+    Parameters
+    ----------
+    raw : ndarray, shape (B, 2 n)
+        Raw actions (NaN and inf allowed: the previous action is applied again, or the
+        settings' ``centre`` at the first step).
+    settings : ScheduleSettings
+        The class's set and rules.
+    state : ScheduleState
+        The episodes' run-time state; updated (``prev`` becomes the applied actions).
+    report : ScheduleReport
+        Receives the applied actions and what the projection did.
     kinks : ndarray, shape (n,)
         Scratch.
     order : ndarray of int, shape (n,)
         Scratch.
     """
-    n = shape.size
+    n = settings.shape.size
+    shape = settings.shape
     for b in range(raw.shape[0]):
-        previous = prev[b, 0] / shape[0]
+        previous = state.prev[b, 0] / shape[0]
         has_prev = math.isfinite(previous)
-        low = kappa_lo
-        if has_prev:
-            if mode == BUDGET:
-                low = max(low, previous * math.exp(-level[b]))
-            elif energy[b] > 0.0:
-                low = max(low, 1.0 / (1.0 / previous + level[b] / energy[b]))
-            low = min(low, previous)  # the previous kappa is always allowed again
-        floor[b] = low
+        low = _floor(settings, state, b, previous)
+        report.floor[b] = low
         finite = True
         for c in range(2 * n):
             if not math.isfinite(raw[b, c]):
                 finite = False
         if finite:
-            kappa = min(max(_minimiser(raw[b], shape, rho, beta, b_lo, kinks, order), low),
-                        kappa_hi)
-            for i in range(n):
-                cone = rho[i] * shape[i] * kappa + beta[i]
-                out[b, i] = kappa * shape[i]
-                out[b, n + i] = min(max(raw[b, n + i], max(b_lo[i], cone)), b_hi[i])
+            best = _minimiser(raw[b], shape, settings.rho, settings.beta, settings.b_lo, kinks,
+                              order)
+            kappa = min(max(best, low), settings.kappa_hi)
             total = 0.0
+            for i in range(n):
+                cone = settings.rho[i] * shape[i] * kappa + settings.beta[i]
+                report.out[b, i] = kappa * shape[i]
+                report.out[b, n + i] = min(max(raw[b, n + i], max(settings.b_lo[i], cone)),
+                                           settings.b_hi[i])
             for c in range(2 * n):
-                total += (out[b, c] - raw[b, c]) ** 2
-            flags[b], distance[b] = 0, math.sqrt(total)
+                total += (report.out[b, c] - raw[b, c]) ** 2
+            report.flags[b], report.distance[b] = 0, math.sqrt(total)
         else:
-            kappa = previous if has_prev else centre[0] / shape[0]
+            kappa = previous if has_prev else settings.centre[0] / shape[0]
             for c in range(2 * n):
-                out[b, c] = prev[b, c] if has_prev else centre[c]
-            flags[b], distance[b] = 1, math.inf
-        if has_prev and kappa != previous:
-            if mode == BUDGET:
-                level[b] = max(0.0, level[b] - max(0.0, math.log(previous / kappa)))
-            else:
-                change = energy[b] * (1.0 / kappa - 1.0 / previous)
-                level[b] = max(0.0, level[b] - change) if change > 0 else level[b] - refill * change
-        near = tol * (1.0 + abs(kappa))
-        active[b, 0] = abs(kappa - low) <= near
-        active[b, 1] = abs(kappa - kappa_lo) <= near
-        active[b, 2] = abs(kappa - kappa_hi) <= near
-        for i in range(n):
-            near = tol * (1.0 + abs(out[b, n + i]))
-            active[b, 3 + i] = abs(out[b, n + i] - b_lo[i]) <= near
-            active[b, 3 + n + i] = abs(out[b, n + i] - b_hi[i]) <= near
-            active[b, 3 + 2 * n + i] = abs(out[b, n + i] - rho[i] * shape[i] * kappa
-                                           - beta[i]) <= near
+                report.out[b, c] = state.prev[b, c] if has_prev else settings.centre[c]
+            report.flags[b], report.distance[b] = 1, math.inf
+        _spend(settings, state, b, previous, kappa)
+        _report_active(settings, report, b, kappa, low)
         for c in range(2 * n):
-            prev[b, c] = out[b, c]
+            state.prev[b, c] = report.out[b, c]
 
 
 class ScheduleLayer(SafetyLayer):
@@ -203,9 +287,11 @@ class ScheduleLayer(SafetyLayer):
         self.polytope = certificate.polytope
         self.scheduled = allowed
         self.tol = float(tol)
-        self._set = (*allowed.arrays(), allowed.kappa_low, allowed.kappa_high)
         self._mode = TANK if allowed.rule == "tank" else BUDGET
         self._centre = allowed.centre()
+        self._settings = ScheduleSettings(*allowed.arrays(), allowed.kappa_low,
+                                          allowed.kappa_high, self._mode, allowed.refill,
+                                          self._centre, self.tol)
         n = allowed.n_joints
         self._scratch = (np.empty(n), np.empty(n, dtype=np.int64))
         self._labels = ("kappa >= floor (budget or tank)", "kappa >= min", "kappa <= max",
@@ -332,13 +418,12 @@ class ScheduleLayer(SafetyLayer):
         raw = np.asarray(raw, dtype=float)
         flat = np.ascontiguousarray(np.atleast_2d(raw))
         count = flat.shape[0]
-        out = np.empty_like(flat)
-        project_scheduled(flat, out, np.empty(count, dtype=np.int64), np.empty(count),
-                          np.empty(count), np.empty((count, len(self.labels)), dtype=np.bool_),
-                          self.tol, *self._set, np.full_like(flat, np.nan),
-                          np.full(count, self.scheduled.initial), np.zeros(count), self._mode,
-                          self.scheduled.refill, self._centre, *self._scratch)
-        return out.reshape(raw.shape)
+        report = ScheduleReport.empty(count, self.scheduled.n_joints)
+        # a first step: no previous action, hence no floor and nothing spent
+        first = ScheduleState(np.full_like(flat, np.nan), np.full(count, self.scheduled.initial),
+                              np.zeros(count))
+        project_scheduled(flat, self._settings, first, report, *self._scratch)
+        return report.out.reshape(raw.shape)
 
     def step(self, raw: np.ndarray) -> Projection:
         """One control step: project onto the step's set and spend the budget or the tank.
@@ -371,14 +456,10 @@ class ScheduleLayer(SafetyLayer):
         if self._prev.shape != shape:
             raise ValueError(f"the episode has {self._prev.shape[0]} scenarios, got "
                              f"{shape[0]}; call reset() to start another")
-        out = np.empty(shape)
-        flags = np.empty(shape[0], dtype=np.int64)
-        distance = np.empty(shape[0])
-        self.last_floor = np.empty(shape[0])
-        active = np.empty((shape[0], len(self.labels)), dtype=np.bool_)
-        project_scheduled(flat, out, flags, distance, self.last_floor, active, self.tol,
-                          *self._set, self._prev, self._level, self._energy, self._mode,
-                          self.scheduled.refill, self._centre, *self._scratch)
+        report = ScheduleReport.empty(shape[0], self.scheduled.n_joints)
+        state = ScheduleState(self._prev, self._level, self._energy)
+        project_scheduled(flat, self._settings, state, report, *self._scratch)
+        out, flags, distance, self.last_floor, active = report
         if single:
             return Projection(out[0], float(distance[0]), active[0], np.zeros(self.dimension,
                               dtype=bool), FLAGS[flags[0]], float(self._level[0]))
