@@ -72,17 +72,25 @@ class GainCertificate:
     details: dict[str, Any] = field(default_factory=dict)
     plant: dict[str, Any] = field(default_factory=dict)
     delay_lower: tuple[float, float] = (0.0, 0.0)
+    _variation: GainVariation = field(init=False, repr=False, compare=False)
+    _scheduled: ScheduledSet | None = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # the parsed forms are computed once, here (a bad class or set fails at construction)
+        object.__setattr__(self, "_variation", parse_gain_variation(self.gain_variation))
+        data = self.details.get("set")
+        object.__setattr__(self, "_scheduled", None if data is None
+                           else ScheduledSet.from_dict(data))
 
     @property
     def variation(self) -> GainVariation:
         """The gain class, parsed."""
-        return parse_gain_variation(self.gain_variation)
+        return self._variation
 
     @property
     def scheduled_set(self) -> ScheduledSet | None:
         """The set of a scheduled class (``details["set"]``), None for the other classes."""
-        data = self.details.get("set")
-        return None if data is None else ScheduledSet.from_dict(data)
+        return self._scheduled
 
     def guarantee(self, start: InitialState | None = None) -> StorageGuarantee | None:
         """What a scheduled class's storage bound allows from a start, in the plant's units.
@@ -213,15 +221,16 @@ class GainCertificate:
             ranges = data["box"]
             box = GainBox(tuple(map(tuple, ranges["kr"])), tuple(map(tuple, ranges["br"])))
             margin = data["delay_margin"]
-            return cls(bool(data["certified"]), str(data["method"]),
-                       str(data["gain_variation"]),
-                       tuple(data["delay_bounds"]),
-                       math.inf if margin == "inf" else float(margin), box,
-                       GainPolytope.from_dict(data["polytope"]),
-                       bool(data["polytope_certified"]), tuple(data["assumptions"]),
-                       data["violation"], dict(data["details"]),
-                       dict(data.get("plant", {})),
-                       _delay_lower(data.get("delay_lower", (0.0, 0.0))))
+            return cls(
+                certified=bool(data["certified"]), method=str(data["method"]),
+                gain_variation=str(data["gain_variation"]),
+                delay_bounds=tuple(data["delay_bounds"]),
+                delay_margin=math.inf if margin == "inf" else float(margin), box=box,
+                polytope=GainPolytope.from_dict(data["polytope"]),
+                polytope_certified=bool(data["polytope_certified"]),
+                assumptions=tuple(data["assumptions"]), violation=data["violation"],
+                details=dict(data["details"]), plant=dict(data.get("plant", {})),
+                delay_lower=_delay_lower(data.get("delay_lower", (0.0, 0.0))))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
 
