@@ -1,8 +1,9 @@
 """Certificates kept on disk by the question they answer, re-verified whenever they are reused.
 
 Two-joint LMI certificates take minutes; asking the same question again should not. A question
-is the plant (its :func:`~teleopkit.model.params.plant_record` fingerprint), the gain box, the
-delay bounds and minimum delays, the method and the gain class; its SHA-256 names a JSON file
+(:class:`~teleopkit.certification.question.Question`: the plant's fingerprint, the gain box, the
+delay bounds and minimum delays, the gain class) and the method name a JSON file by their
+SHA-256 (:meth:`~teleopkit.certification.question.Question.key`)
 in the cache directory (``$TELEOPKIT_CACHE``, else ``~/.cache/teleopkit``). A file read back
 goes through :func:`~teleopkit.certification.verification.load_certificate`, which re-checks
 every proof against the plant, so an edited or stale file is never trusted: it is
@@ -11,20 +12,15 @@ recomputed and overwritten.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 from collections.abc import Callable
 from pathlib import Path
 
-from teleopkit._version import __version__
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.verification import load_certificate
 from teleopkit.files import atomic_write
-from teleopkit.model.params import TeleoperatorParams, plant_record
 
-__all__ = ["cache_directory", "cached", "question_key"]
+__all__ = ["cache_directory", "cached"]
 
 
 def cache_directory() -> Path:
@@ -37,32 +33,6 @@ def cache_directory() -> Path:
     """
     root = os.environ.get("TELEOPKIT_CACHE")
     return Path(root) if root else Path.home() / ".cache" / "teleopkit"
-
-
-def question_key(params: TeleoperatorParams, box: GainBox, bounds: tuple[float, float],
-                 lower: tuple[float, float], method: str, variation: str) -> str:
-    """The SHA-256 of a certification question (the teleopkit version included).
-
-    Parameters
-    ----------
-    params : TeleoperatorParams
-        The plant.
-    box : GainBox
-        The remote gain box.
-    bounds, lower : tuple of float
-        Delay bounds ``(T_l*, T_r*)`` and minimum delays ``(T_l_min, T_r_min)`` in seconds.
-    method, variation : str
-        Certification method and gain class.
-
-    Returns
-    -------
-    str
-        64 hex digits.
-    """
-    question = {"plant": plant_record(params)["fingerprint"], "box": box.to_dict(),
-                "bounds": [float(b) for b in bounds], "lower": [float(b) for b in lower],
-                "method": method, "variation": variation, "teleopkit": __version__}
-    return hashlib.sha256(json.dumps(question, sort_keys=True).encode()).hexdigest()
 
 
 def cached(key: str, compute: Callable[[], GainCertificate],

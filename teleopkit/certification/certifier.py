@@ -17,13 +17,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-from teleopkit.certification.cache import cached, question_key
-from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay_floors
+from teleopkit.certification.cache import cached
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
+from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
+from teleopkit.certification.question import Question
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.progress import reports_progress
 
@@ -58,34 +58,23 @@ def certify_all(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
         One certificate per method, in the order of
         :func:`~teleopkit.certification.methods.methods_for`.
     """
-    if isinstance(variation, str):
-        variation = parse_gain_variation(variation)
-    if box.n_joints != params.n_joints:
-        raise ValueError(f"gain box has {box.n_joints} joints, the teleoperator {params.n_joints}")
-    for i, (_, high) in enumerate(box.kr):
-        if high <= 0:
-            raise ValueError(f"K_r of joint {i + 1} is 0 everywhere in the box: a remote arm "
-                             "without stiffness does not follow the local one (nothing to certify)")
-    tl_max, tr_max = check_delay_bounds(tl_max, tr_max)
-    lower = check_delay_floors(tl_min, tr_min, tl_max, tr_max)
-    checked: GainVariation = variation
+    question = Question(params, box, (tl_max, tr_max), (tl_min, tr_min), variation)
 
     def answer(name: str) -> GainCertificate:
         def compute() -> GainCertificate:
             if name == "lmi":  # the workers start while the LMI modules are imported here
                 start_workers()
-            return certify_with(name, params, box, tl_max, tr_max, checked, lower, on_proven)
+            return certify_with(name, question, on_proven)
 
         if name != "lmi" or not cache:  # the closed form is instant
             return compute()
-        key = question_key(params, box, (tl_max, tr_max), lower, name, str(checked))
-        certificate, reused = cached(key, compute)
+        certificate, reused = cached(question.key(name), compute)
         if reused:
             _log.info("LMI certificate reused from the cache (re-verified)")
         return certificate
 
     with using_workers(workers):
-        return [answer(name) for name in methods_for(method, variation)]
+        return [answer(name) for name in methods_for(method, question.gain_class)]
 
 
 def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,

@@ -4,7 +4,8 @@
 and scheduled gains, instant); ``"lmi"`` the Lyapunov–Krasovskii LMIs of
 :mod:`teleopkit.certification.lmi` on the linearisation at rest (frozen, switching and
 rate-bounded gains; seconds for one joint, a minute or two for two); ``"all"`` every method
-that covers the gain class. :func:`certify_with` runs one method; the entry point
+that covers the gain class. :func:`certify_with` answers a
+:class:`~teleopkit.certification.question.Question` with one method; the entry point
 :func:`~teleopkit.certification.certifier.certify_gains` adds the choice among methods, the
 worker processes and the cache.
 """
@@ -15,15 +16,15 @@ from collections.abc import Callable
 
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
-from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.nuno.condition import certify_frozen
 from teleopkit.certification.nuno.scheduled import certify_scheduled
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.certification.question import Question
 
-__all__ = ["METHODS", "best_certificate", "certify_with", "methods_for"]
+__all__ = ["CERTIFIERS", "best_certificate", "certify_with", "methods_for"]
 
-METHODS = ("nuno", "lmi", "all")
-"""Values of ``method`` accepted by :func:`~teleopkit.certification.certifier.certify_gains`."""
+CERTIFIERS = ("nuno", "lmi", "all")
+"""Values of ``method`` accepted by :func:`~teleopkit.certification.certifier.certify_gains`
+(the LMI formulations of the package :mod:`certify` are ``certify.METHODS``)."""
 
 
 def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
@@ -42,8 +43,8 @@ def methods_for(method: str, variation: GainVariation) -> tuple[str, ...]:
     tuple of str
         Method names.
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    if method not in CERTIFIERS:
+        raise ValueError(f"unknown method {method!r}; available: {', '.join(CERTIFIERS)}")
     if method != "all":
         return (method,)
     if variation.scheduled:
@@ -70,29 +71,40 @@ def best_certificate(certificates: list[GainCertificate]) -> GainCertificate:
     return max(certificates, key=lambda c: (c.certified, c.polytope_certified, c.delay_margin))
 
 
-def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: float,
-                 tr_max: float, variation: GainVariation,
-                 delay_lower: tuple[float, float] = (0.0, 0.0),
-                 on_proven: Callable[[GainCertificate], None] | None = None) -> GainCertificate:
-    """The answer of one method (``"nuno"`` or ``"lmi"``), checked inputs assumed.
+def _closed_form(question: Question,
+                 on_proven: Callable[[GainCertificate], None] | None) -> GainCertificate:
+    """The closed form: frozen gains pointwise, or a scheduled class's storage."""
+    variation = question.gain_class
+    certify = certify_scheduled if variation.scheduled else certify_frozen
+    return certify(question.params, question.box, *question.bounds, variation)
 
-    The closed form covers every delay in ``[0, T_i*]``, hence any minimum delay
-    (``delay_lower`` is not needed and its certificate records 0); the LMIs use it.
+
+def _lmi(question: Question,
+         on_proven: Callable[[GainCertificate], None] | None) -> GainCertificate:
+    """The LMIs on the linearisation (cvxpy is imported only when asked)."""
+    from teleopkit.certification.lmi.verdict import certify_lmi
+
+    return certify_lmi(question.params, question.box, *question.bounds, question.gain_class,
+                       question.lower, on_proven=on_proven)
+
+
+_METHODS: dict[str, Callable[[Question, Callable[[GainCertificate], None] | None],
+                             GainCertificate]] = {"nuno": _closed_form, "lmi": _lmi}
+
+
+def certify_with(name: str, question: Question,
+                 on_proven: Callable[[GainCertificate], None] | None = None) -> GainCertificate:
+    """The answer of one method to a question.
+
+    The closed form covers every delay in ``[0, T_i*]``, hence any minimum delay (its
+    certificate records 0); the LMIs use the question's minimum delays.
 
     Parameters
     ----------
     name : {"nuno", "lmi"}
         The method.
-    params : TeleoperatorParams
-        Teleoperator.
-    box : GainBox
-        Remote gain ranges.
-    tl_max, tr_max : float
-        Delay bounds in seconds.
-    variation : GainVariation
-        Gain class.
-    delay_lower : tuple of float
-        Minimum delays in seconds.
+    question : Question
+        What to certify.
     on_proven : callable, optional
         The LMI method hands it each larger set proven on the way
         (:func:`~teleopkit.certification.lmi.verdict.certify_lmi`); unused by the closed form,
@@ -103,12 +115,7 @@ def certify_with(name: str, params: TeleoperatorParams, box: GainBox, tl_max: fl
     GainCertificate
         The method's certificate.
     """
-    if name == "lmi":
-        from teleopkit.certification.lmi.verdict import certify_lmi  # cvxpy: only when asked
-
-        return certify_lmi(params, box, tl_max, tr_max, variation, delay_lower,
-                           on_proven=on_proven)
-    if name != "nuno":
-        raise ValueError(f"unknown method {name!r}; available: nuno, lmi")
-    certify = certify_scheduled if variation.scheduled else certify_frozen
-    return certify(params, box, tl_max, tr_max, variation)
+    method = _METHODS.get(name)
+    if method is None:
+        raise ValueError(f"unknown method {name!r}; available: {', '.join(_METHODS)}")
+    return method(question, on_proven)

@@ -21,6 +21,7 @@ import numpy as np
 
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.methods import certify_with
+from teleopkit.certification.question import Question
 from teleopkit.model.params import plant_params
 
 __all__ = ["check_certificate", "load_certificate", "verify_certificate"]
@@ -33,8 +34,9 @@ def _plain(data: Any) -> Any:
 
 def _check_closed_form(certificate: GainCertificate) -> None:
     """Raise unless the closed form re-derives exactly what the certificate states."""
-    derived = certify_with("nuno", plant_params(certificate.plant), certificate.box,
-                           *certificate.delay_bounds, certificate.variation)
+    derived = certify_with("nuno", Question(plant_params(certificate.plant), certificate.box,
+                                            certificate.delay_bounds,
+                                            variation=certificate.variation))
     for name in ("certified", "polytope_certified", "delay_lower", "assumptions"):
         if getattr(derived, name) != getattr(certificate, name):
             raise ValueError(f"the certificate states {name} = {getattr(certificate, name)}, "

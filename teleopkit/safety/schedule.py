@@ -149,7 +149,20 @@ class ScheduleReport(NamedTuple):
 
     @classmethod
     def empty(cls, batch: int, n_joints: int) -> ScheduleReport:
-        """Uninitialised arrays for ``batch`` rows of ``n_joints`` joints."""
+        """Uninitialised arrays for a batch.
+
+        Parameters
+        ----------
+        batch : int
+            Rows.
+        n_joints : int
+            Joints.
+
+        Returns
+        -------
+        ScheduleReport
+            The arrays, to be filled by :func:`project_scheduled`.
+        """
         return cls(np.empty((batch, 2 * n_joints)), np.empty(batch, dtype=np.int64),
                    np.empty(batch), np.empty(batch),
                    np.empty((batch, 3 + 3 * n_joints), dtype=np.bool_))

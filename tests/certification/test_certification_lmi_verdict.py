@@ -120,10 +120,12 @@ def test_certify_refuses_bad_minimum_delays(capsys, args, needle):
 def test_the_cache_reuses_a_verified_certificate_and_recomputes_an_edited_one(tmp_path,
                                                                              one_joint,
                                                                              with_floor):
-    from teleopkit.certification.cache import cached, question_key
+    from teleopkit.certification.cache import cached
+    from teleopkit.certification.question import Question
 
-    key = question_key(one_joint, NARROW, (1.0, 1.0), (FLOOR, FLOOR), "lmi", "frozen")
-    assert key != question_key(one_joint, NARROW, (1.0, 1.0), (0.0, 0.0), "lmi", "frozen")
+    key = Question(one_joint, NARROW, (1.0, 1.0), (FLOOR, FLOOR)).key("lmi")
+    assert key != Question(one_joint, NARROW, (1.0, 1.0)).key("lmi")
+    assert key != Question(one_joint, NARROW, (1.0, 1.0), (FLOOR, FLOOR)).key("nuno")
     calls = []
 
     def compute():
