@@ -22,6 +22,7 @@ from teleopkit.delays.profiles import DelayProfile
 from teleopkit.delays.spec import check_duration
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim.backends import Backend, CompiledBackend, NumpyBackend, constant_past
+from teleopkit.sim.memory import check_fits
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.stability import check_motor_damping, check_step
 from teleopkit.sim.state import StateLayout
@@ -329,26 +330,6 @@ class Simulator:
         n = self.n_joints
         return 8 * (periods + 1) * self.batch * (self.layout.size + 2 * n + 2 + 2 * n)
 
-    def check_memory(self, periods: int) -> None:
-        """Refuse a run whose record would not fit in half the memory available now.
-
-        Parameters
-        ----------
-        periods : int
-            Control periods.
-
-        Raises
-        ------
-        ValueError
-            One line with the run's size and the memory available.
-        """
-        need, free = self.record_bytes(periods), available_memory()
-        if need > free / 2:
-            raise ValueError(f"a run of {periods * self.control_period:g} s of {self.batch} "
-                             f"scenario(s) records {need / 1e9:.3g} GB, more than half the "
-                             f"{free / 1e9:.3g} GB of memory available; simulate shorter runs "
-                             "(Simulator.advance streams them)")
-
     def _periods_per_call(self, chunk: float | None) -> int:
         """Whole periods per kernel call of :meth:`run` (``chunk`` seconds, or the default)."""
         if chunk is None:
@@ -387,7 +368,8 @@ class Simulator:
         """
         periods = whole_periods(duration, self.control_period)
         per_call = self._periods_per_call(chunk)
-        self.check_memory(periods)
+        check_fits(self.record_bytes(periods),
+                   f"a run of {periods * self.control_period:g} s of {self.batch} scenario(s)")
         if gains is None:
             gains = self.scenario.params.remote_gains.as_action()
         gains = self._checked(gains)
@@ -425,16 +407,6 @@ class _Inputs:
         """Whether these are ``scenario``'s inputs for ``rows`` stage times from ``step``."""
         return (scenario is self.scenario and step >= self.step
                 and ROWS_PER_STEP * (step - self.step) + rows <= self.times.size)
-
-
-def available_memory() -> int:
-    """Bytes of memory available to this process now (physical pages not in use)."""
-    import os
-
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):  # not POSIX: no limit known
-        return 2**62
 
 
 def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
