@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -38,7 +40,7 @@ def test_decisions_stay_inside_the_polytope_and_the_delay_bounds(nuno, rng, dela
 def test_a_rate_bound_limits_every_step_of_the_schedule(rng):
     cert = certify_gains(paper_setup(), GainBox.uniform((5.0, 10.0), (30.0, 60.0)), 1.0, 1.0,
                          "nuno")
-    rated = GainCertificate(**{**cert.__dict__, "gain_variation": "rate:50"})
+    rated = replace(cert, gain_variation="rate:50")
     space = SearchSpace(paper_setup(), rated, duration=3.0)
     decision = decode(space, rng.random((4, space.dimension)), PolytopeLayer(cert.polytope))
     schedule = gain_schedule(space, decision)
@@ -62,9 +64,8 @@ def test_cma_search_catches_a_set_that_is_not_stable():
     """K_r = 50, B_r = 1 is unstable for a constant 1 s delay: the search must say DIVERGED."""
     box = GainBox.uniform((50.0, 50.0), (1.0, 1.0))
     base = certify_gains(paper_setup(), BOX, 1.0, 1.0, "nuno")
-    unsafe = GainCertificate(**{**base.__dict__, "certified": False, "box": box,
-                                "polytope": GainPolytope.from_box(box),
-                                "polytope_certified": False})
+    unsafe = replace(base, certified=False, box=box, polytope=GainPolytope.from_box(box),
+                     polytope_certified=False)
     space = SearchSpace(paper_setup(), unsafe, delays="segments", segments=2, duration=30.0)
     result = search(space, "energy_growth", "cma", budget=16, population=8, seed=0)
     assert result.diverged and not result.covered and not result.finding
