@@ -80,6 +80,9 @@ def _arm(node: Node, n: int | None) -> PlanarArm:
 def _environment(node: Node | None, n: int) -> Any:
     if node is None or node.value == "free":
         return "free"
+    if not isinstance(node.value, dict):
+        raise node.error(f"must be free or {{wall: [positions], stiffness, damping}}, got "
+                         f"{node.value!r}")
     entries = node.fields(("wall", "stiffness", "damping"), ("wall",))
     return Wall(entries["wall"].numbers(n, allow_inf=True),
                 entries["stiffness"].number(0.0) if "stiffness" in entries else 1000.0,

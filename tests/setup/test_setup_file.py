@@ -124,6 +124,13 @@ def test_each_scenario_of_a_batch_runs_as_it_would_alone():
      "network: unknown key 'sideways'"),
     ("network: {forward: {max: 1}}", "missing key 'plant'"),
     ("plant: [1, 2", "is not valid YAML"),
+    ("plant: {local_arm: {lengths: [0.3, 0.2], masses: [1, 1]}, environment: wall}",
+     "plant.environment: must be free or {wall: [positions], stiffness, damping}, got 'wall'"),
+    ("plant: {local_arm: {lengths: [0.3, 0.2], masses: [1, 1]}, torque_limit: 0}",
+     "plant.torque_limit: must be positive, got 0"),
+    ("plant: {local_arm: {lengths: [0.3, 0.2], masses: [1, 1]}}\nstart: {local: [0.1]}",
+     "start.local: needs 2 values (one per joint), got 1"),
+    ("", "the setup: must be a mapping of plant, network, operator, start, got None"),
 ])
 def test_every_error_is_one_line_naming_the_key_path(tmp_path, text, message):
     (tmp_path / "bad.csv").write_text("time,angle\n0,1\n1,2\n")
