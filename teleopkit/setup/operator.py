@@ -26,7 +26,7 @@ import numpy as np
 
 from teleopkit.model.params import Operator
 from teleopkit.setup.network import file_digest
-from teleopkit.setup.reading import Node
+from teleopkit.setup.reading import Node, listed
 from teleopkit.sim.motions import Motion, RecordedMotion, SineMotion, smooth_motions
 
 __all__ = ["MotionSpec", "OperatorSetup"]
@@ -101,7 +101,10 @@ class MotionSpec:
         if isinstance(node.value, str):
             word, _, rest = node.text().partition(":")
             if word == "paper" and not rest:
-                return cls.paper() if n == 2 else cls._paper_needs_two(node, n)
+                if n != 2:
+                    raise node.error(f"the paper's motion moves 2 joints, the arm has {n}: give "
+                                     "sines, smooth, csv:PATH or still")
+                return cls.paper()
             if word == "still" and not rest:
                 return cls("still")
             if word == "csv" and rest:
@@ -127,11 +130,6 @@ class MotionSpec:
             ("frequency", fields["frequency"].interval(0.0)),
             ("decay", fields["decay"].interval(0.0) if "decay" in fields else (0.0, 0.0)),
             ("components", int(components))))
-
-    @classmethod
-    def _paper_needs_two(cls, node: Node, n: int) -> MotionSpec:
-        raise node.error(f"the paper's motion moves 2 joints, the arm has {n}: give sines, "
-                         "smooth, csv:PATH or still")
 
     @classmethod
     def _recorded(cls, node: Node, path: Path, n: int) -> MotionSpec:
@@ -227,7 +225,7 @@ class MotionSpec:
             decays = settings["decays"]
             kind = "decaying" if any(decays) else "non-decaying"
             low, high = settings["gains"]
-            return (f"{kind} sines, amplitudes {_list(settings['amplitudes'])} rad, gains "
+            return (f"{kind} sines, amplitudes {listed(settings['amplitudes'])} rad, gains "
                     f"+-{low:g}-{high:g} per scenario")
         if self.kind == "smooth":
             low, high = settings["amplitude"]
@@ -264,10 +262,6 @@ def _draw_mix(parts: tuple[MotionSpec, ...], rng: np.random.Generator, batch: in
 
 
 _ARRAYS = ("amplitudes", "frequencies", "phases", "decays")
-
-
-def _list(values: tuple[float, ...]) -> str:
-    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Node", "SetupError", "load_document"]
+__all__ = ["Node", "SetupError", "listed", "load_document"]
 
 
 class SetupError(ValueError):
@@ -221,6 +221,22 @@ class Node:
         if not isinstance(self.value, list) or not self.value:
             raise self.error(f"must be a non-empty list, got {_shown(self.value)}")
         return (self.child(i) for i in range(len(self.value)))
+
+
+def listed(values: tuple[float, ...]) -> str:
+    """Numbers as a short list for people, for example ``[0.38, 0.38]``.
+
+    Parameters
+    ----------
+    values : tuple of float
+        The numbers.
+
+    Returns
+    -------
+    str
+        Each in ``g`` format, in brackets.
+    """
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
 
 def _shown(value: Any) -> str:

@@ -42,7 +42,7 @@ from teleopkit.model.params import (
 )
 from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
-from teleopkit.setup.reading import Node, SetupError, load_document
+from teleopkit.setup.reading import Node, SetupError, listed, load_document
 from teleopkit.setup.start import StartMix, StartSpec
 
 if TYPE_CHECKING:
@@ -396,28 +396,24 @@ class Setup:
     def describe(self) -> list[str]:
         """What the setup describes, a line per part, for people."""
         p = self.params
-        arms = [f"{name} arm: {p.n_joints} links, lengths {_list(arm.lengths)} m, masses "
-                f"{_list(arm.masses)} kg" for name, arm in (("local", p.local_arm),
+        arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
+                f"{listed(arm.masses)} kg" for name, arm in (("local", p.local_arm),
                                                            ("remote", p.remote_arm))]
         wall = ("free space" if not isinstance(p.environment, Wall)
-                else f"a wall at {_list(p.environment.position)} rad")
+                else f"a wall at {listed(p.environment.position)} rad")
         channels = [f"{name} delay: {ch.min:g}-{ch.max:g} s, profile {', '.join(ch.profiles)}"
                     for name, ch in (("forward", self.network.forward),
                                      ("backward", self.network.backward))]
         return [*arms,
-                f"elastic joints: stiffness {_list(p.joints.stiffness)} N m/rad, rotor inertia "
-                f"{_list(p.joints.rotor_inertia)} kg m^2",
-                f"local gains: K_l {_list(p.local_gains.stiffness)}, B_l "
-                f"{_list(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
+                f"elastic joints: stiffness {listed(p.joints.stiffness)} N m/rad, rotor inertia "
+                f"{listed(p.joints.rotor_inertia)} kg m^2",
+                f"local gains: K_l {listed(p.local_gains.stiffness)}, B_l "
+                f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
                 *channels,
                 f"operator: K_s {self.operator.stiffness:g}, K_d {self.operator.damping:g}; "
                 f"{self.operator.motion.describe()}",
                 f"start: {self.start.describe()}",
                 f"fingerprint {self.fingerprint}"]
-
-
-def _list(values: tuple[float, ...]) -> str:
-    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
 
 def paper_setup_path() -> Path:
