@@ -2,19 +2,10 @@
 
 A trained policy records the certificate it was trained under (:func:`policy_certificate`); it
 is evaluated under that certificate unless another one that covers its class is given
-(:func:`check_covers`). Beside it, on the same held-out scenarios:
-
-- ``best static``: the best constant gains of the frozen class on the tuner certificate's box
-  and delay bounds, the reference of every table (the toughest static comparator: the closed
-  form proves its per-joint ratios only for the shape of ``K_l``);
-- ``best static (<class>)``: the best constant gains of the tuner's own class;
-- ``semi-active (<class>)``: the hand-written semi-active damping law, tuned
-  (:func:`~teleopkit.rl.baselines.best_semi_active`), for a class that lets the damping switch;
-- ``open-loop (<class>)``: the tuner's mean gain schedule over training scenarios, replayed
-  as a function of time alone (is it state feedback, or a schedule?);
-- ``fixed``: the paper's gains.
-
-The comparators are searched for the setup being evaluated (:mod:`teleopkit.rl.comparators`).
+(:func:`check_covers`). Beside it, on the same held-out scenarios, run its comparators
+(:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the reference of every
+table, and of the tuner's class, the tuned semi-active law, the tuner's open-loop schedule, the
+paper's fixed gains), searched for the setup being evaluated.
 """
 
 from __future__ import annotations
