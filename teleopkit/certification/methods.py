@@ -84,8 +84,7 @@ def _lmi(question: Question,
     """The LMIs on the linearisation (cvxpy is imported only when asked)."""
     from teleopkit.certification.lmi.verdict import certify_lmi
 
-    return certify_lmi(question.params, question.box, *question.bounds, question.gain_class,
-                       question.lower, on_proven=on_proven)
+    return certify_lmi(question, on_proven=on_proven)
 
 
 _METHODS: dict[str, Callable[[Question, Callable[[GainCertificate], None] | None],

@@ -225,7 +225,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     if root is not None and not box_within(bounding, root):
         raise ValueError("the gain set reaches outside the root box of its cover")
 
-    def partial(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
+    def unfinished(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
         return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
                      tuple(empty), root=root)
 
@@ -249,13 +249,13 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
         beside = ([ordered[0]] if solves == 0 and len(fresh) == 1
                   and memo.vertex(ordered[0]) is None else [])
         if solves + len(unchecked) + len(fresh) + len(beside) > budget:
-            return partial(f"budget of {budget} solves spent with {len(fresh)} cells left")
+            return unfinished(f"budget of {budget} solves spent with {len(fresh)} cells left")
         failed = memo.failed_vertex(polytope)  # (one checked beside the last level may fail)
         if failed is None:
             solves += _check_alone(params, unchecked, memo)
             failed = memo.failed_vertex(polytope)
         if failed is not None:
-            return partial(f"the gain vertex {failed[0].tolist()} is not certified alone",
+            return unfinished(f"the gain vertex {failed[0].tolist()} is not certified alone",
                            (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
                   max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
@@ -272,7 +272,7 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                 boxes.append(box)
                 continue
             if not _splittable(*box):
-                return partial(f"the cell around {box[0].tolist()} is too small to split "
+                return unfinished(f"the cell around {box[0].tolist()} is too small to split "
                                "further", (cert,))
             failures += 1
             wave.extend(_halves(*box))

@@ -36,6 +36,7 @@ from teleopkit.certification.lmi.systems import (
 )
 from teleopkit.certification.lmi.workers import Background, map_solves, start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
+from teleopkit.certification.question import Question
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
 __all__ = [
@@ -142,26 +143,18 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: in
     return high, covers[high]
 
 
-def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
-                variation: GainVariation, delay_lower: tuple[float, float] = NO_LOWER,
-                method: str = LMI_METHOD, steps: int = 3,
+def certify_lmi(question: Question, method: str = LMI_METHOD, steps: int = 3,
                 on_proven: Callable[[GainCertificate], None] | None = None) -> GainCertificate:
-    """The LMI certificate of a gain box on the linearisation at rest.
+    """The LMI certificate of a question's gain box on the linearisation at rest.
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator.
-    box : GainBox
-        Remote gain ranges.
-    tl_max, tr_max : float
-        Delay bounds in seconds.
-    variation : GainVariation
-        Gain class (``rate:R`` is certified as switching: held gains jump).
-    delay_lower : tuple of float
-        Lower delay bounds ``(T_l_min, T_r_min)``: the delays lie in ``[T_i_min, T_i*]``.
+    question : Question
+        Plant, gain box, delay bounds and minimum delays (the delays lie in
+        ``[T_i_min, T_i*]``) and gain class (``rate:R`` is certified as switching: held gains
+        jump).
     method : str
-        A :data:`certify.METHODS` name.
+        A :data:`certify.METHODS` name (the LMI formulation).
     steps : int
         Bisection steps of the certified polytope when the box is not certified.
     on_proven : callable, optional
@@ -175,6 +168,8 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     GainCertificate
         Verdict, certified polytope, delay margin and the solver's data in ``details``.
     """
+    params, box, variation = question.params, question.box, question.gain_class
+    (tl_max, tr_max), delay_lower = question.bounds, question.lower
     if variation.scheduled:
         raise ValueError(f"the LMI method covers frozen, switching and rate:R gains, not "
                          f"{variation}; certify {variation} with the closed form (nuno)")
@@ -190,7 +185,7 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     cert = verdict.certificates[-1]
     proof_details: dict[str, Any] = {}
 
-    def partial(polytope: GainPolytope, certified: bool, extra: dict[str, Any]) -> None:
+    def proven(polytope: GainPolytope, certified: bool, extra: dict[str, Any]) -> None:
         if on_proven is None:
             return
         on_proven(GainCertificate(
@@ -203,9 +198,9 @@ def certify_lmi(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max:
     if verdict.certified:
         polytope, polytope_certified, violation = whole, True, None
         proof_details["proof"] = cover_proof(verdict, bounds, delay_lower)
-        partial(whole, True, proof_details)
+        proven(whole, True, proof_details)
     else:
-        scale, cover = _lmi_polytope(params, box, kind, steps, memo, lambda s, c: partial(
+        scale, cover = _lmi_polytope(params, box, kind, steps, memo, lambda s, c: proven(
             cut_polytope(params, box, tl_max, tr_max, s), False,
             {"polytope_scale": s, "proof": cover_proof(c, bounds, delay_lower)}))
         polytope = cut_polytope(params, box, tl_max, tr_max, scale)
