@@ -104,6 +104,11 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
         PAPER_TUNER: "the paper's tuner (teleopkit/data/td3_policy.npz), trained under the "
                      "frozen class, whose certificate covers constant gains only: it switches "
                      "them every few steps, so its row is not covered (the paper's claim)."})
+    preamble += ("\nThis is one condition. The shipped tuner's win here is the opening of the "
+                 "paper's start, damped on a schedule (compare its open-loop row); on other "
+                 "starts, operators, walls and delays, each against constant gains searched for "
+                 "it, it gains or loses: `python benchmarks/bench_conditions.py` measures it, and "
+                 "`teleopkit evaluate --policy covered --setup FILE` on your own setup.\n")
     summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble,
                           tuner=tuner)
     _log.info("reproduction: running the episodes of the figures")
