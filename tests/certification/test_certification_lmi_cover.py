@@ -15,15 +15,14 @@ from teleopkit.certification.lmi.cover import (
     LIMIT_RTOL,
     PROBES,
     _check_alone,
-    _clip,
     _solve_level,
-    _split_again,
     cover_certificate,
     cover_margin,
     limiting_vertex,
     set_certificate,
     vertex_margin,
 )
+from teleopkit.certification.lmi.planner import Level, _split_again, clip, halves
 from teleopkit.certification.lmi.systems import (
     CHANNELS,
     LMI_METHOD,
@@ -201,18 +200,19 @@ def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, mo
     bad = vertex_certificate(one_joint, np.array([10.0, 30.0]), 5.0, 5.0)
     assert good.certified and not bad.certified
     whole = GainPolytope.from_box(NARROW)
-    quarters = _split_again(cover._halves(NARROW.lower, NARROW.upper))
-    todo = [(box, _clip(whole, *box)) for box in quarters]
+    quarters = _split_again(halves((NARROW.lower, NARROW.upper)))
+    todo = [(box, clip(whole, box)) for box in quarters]
     promise = [nuno_joint_margins(one_joint, cell.vertices()).min() for _, cell in todo]
     assert len(todo) == 4 > PROBES
     for verdict, solves in ((bad, PROBES), (good, len(todo))):
         calls: list[GainPolytope] = []
         monkeypatch.setattr(cover, "lmi_certificate",
                             lambda *args, v=verdict, seen=calls, **_: seen.append(args[1]) or v)
-        known = [None] * len(todo)
         memo = CellMemo(one_joint, (1.45, 1.45), LMI_METHOD, (0.0, 0.0))
-        assert _solve_level(one_joint, todo, known, list(range(len(todo))), memo) == solves
-        assert len(calls) == solves and sum(k is not None for k in known) == solves
+        level = Level(todo, [None] * len(todo), list(range(len(todo))))
+        solved, count = _solve_level(one_joint, level, memo)
+        assert count == solves
+        assert len(calls) == solves and len(solved) == solves
     probed = sorted(range(len(todo)), key=lambda k: -promise[k])[:PROBES]
     assert calls[:PROBES] == [todo[k][1] for k in probed]  # the most promising first
 

@@ -38,8 +38,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from certify import Certificate
-from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
+from teleopkit.certification.gain_sets import GainPolytope, box_within
 from teleopkit.certification.lmi.cells import CellMemo
+from teleopkit.certification.lmi.planner import (
+    CORNERS_AT_ONCE,
+    MIN_RATIO,
+    Cover,
+    CoverPlan,
+    Level,
+    splittable,
+)
 from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
@@ -60,10 +68,6 @@ _log = logging.getLogger(__name__)
 CELL_BUDGET = 400
 """Most cell solves :func:`cover_certificate` spends before it gives up (not certified)."""
 
-CORNERS_AT_ONCE = 2
-"""Gain vertices a cover checks alone side by side before it looks at their verdicts (fixed, so
-a cover spends the same solves on every machine)."""
-
 CELL_RETRY = "accurate"
 """A cell retries in balanced coordinates only after an accurate solve failed: on the paper's
 two-joint teleoperator no cell whose first solve ended ``optimal_inaccurate`` was certified by
@@ -78,93 +82,6 @@ LIMIT_RTOL = 0.05
 
 _SMALLEST = 1e-4
 """A bracket ``[T_min, T_min + this]`` without a certified bound ends a margin search (0 s)."""
-
-MIN_RATIO = 1.001
-"""A failing cell whose every gain range is narrower than this ratio is not split further."""
-
-
-@dataclass(frozen=True)
-class Cover:
-    """Outcome of :func:`cover_certificate`.
-
-    Parameters
-    ----------
-    certified : bool
-        Whether every constant gain of the set is certified.
-    cells : tuple of GainPolytope
-        The certified cells (their union is the set when ``certified``).
-    certificates : tuple of certify.Certificate
-        One per certified cell, then, if not certified, the certificate that failed last.
-    solves : int
-        Number of LMI solves, failed ones included.
-    reason : str
-        Why the cover is incomplete (empty when certified).
-    boxes : tuple
-        The box ``(lower, upper)`` each cell is the set clipped to (``None``: the cell is the
-        whole set), one per cell.
-    empty : tuple
-        Boxes of the split that miss the set (no certificate needed): with ``boxes`` they tile
-        the set's bounding box, which is what makes the cells a cover.
-    variation : str
-        The gain class each cell's certificate covers (``"switching"`` for split cells).
-    root : tuple or None
-        The box ``(lower, upper)`` that was split (it contains the set; ``None``: the set's
-        bounding box).
-    """
-
-    certified: bool
-    cells: tuple[GainPolytope, ...]
-    certificates: tuple[Certificate, ...]
-    solves: int
-    reason: str = ""
-    boxes: tuple[tuple[np.ndarray, np.ndarray] | None, ...] = ()
-    empty: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
-    variation: str = "switching"
-    root: tuple[np.ndarray, np.ndarray] | None = None
-
-
-def _box(lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
-    n = lower.size // 2
-    return GainPolytope.from_box(GainBox(tuple(zip(lower[:n], upper[:n], strict=True)),
-                                         tuple(zip(lower[n:], upper[n:], strict=True))))
-
-
-def _clip(polytope: GainPolytope, lower: np.ndarray, upper: np.ndarray) -> GainPolytope:
-    box = _box(lower, upper)
-    return polytope.intersect(box.G, box.h, box.labels)
-
-
-def _ratios(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """``max / min`` of each gain range (``inf`` for a range that starts at zero)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(upper > lower, upper / lower, 1.0)
-
-
-def _splittable(lower: np.ndarray, upper: np.ndarray) -> bool:
-    """Whether some gain range of the box is at least :data:`MIN_RATIO` wide in ratio."""
-    return bool(_ratios(lower, upper).max() >= MIN_RATIO)
-
-
-def _halves(lower: np.ndarray, upper: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Split the widest range (in ratio) at its geometric mean (midpoint from zero)."""
-    axis = int(np.argmax(_ratios(lower, upper)))
-    low, high = lower[axis], upper[axis]
-    cut = np.sqrt(low * high) if low > 0 else 0.5 * (low + high)
-    first_upper, second_lower = upper.copy(), lower.copy()
-    first_upper[axis] = second_lower[axis] = cut
-    return [(lower, first_upper), (second_lower, upper)]
-
-
-def _split_again(wave: list[tuple[np.ndarray, np.ndarray]]
-                 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The next level's halves, halved once more where they are wide enough to split.
-
-    Used after a level in which no cell was certified: its halves are nearly as wide and would
-    mostly fail too, so the level is skipped (two halvings, the boxes of the level after it).
-    """
-    return [half for box in wave
-            for half in (_halves(*box) if _splittable(*box) else [box])]
-
 
 def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
                       tr_max: float, method: str = LMI_METHOD, budget: int = CELL_BUDGET,
@@ -215,121 +132,75 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     if not memo.answers(params, (tl_max, tr_max), method, delay_lower):
         raise ValueError("the cell memo holds verdicts of another question (plant, delay "
                          "bounds or method)")
-    solves, failures, vertices_checked = 0, 0, False
-    cells: list[GainPolytope] = []
-    certs: list[Certificate] = []
-    boxes: list[tuple[np.ndarray, np.ndarray] | None] = []
-    empty: list[tuple[np.ndarray, np.ndarray]] = []
-
-    bounding = (corners.min(axis=0), corners.max(axis=0))
-    if root is not None and not box_within(bounding, root):
+    if root is not None and not box_within((corners.min(axis=0), corners.max(axis=0)), root):
         raise ValueError("the gain set reaches outside the root box of its cover")
-
-    def unfinished(reason: str, failed: tuple[Certificate, ...] = ()) -> Cover:
-        return Cover(False, tuple(cells), (*certs, *failed), solves, reason, tuple(boxes),
-                     tuple(empty), root=root)
-
-    # the corner the closed form finds weakest is checked alone beside the whole set, then
-    # all corners once a level fails entirely or the split has failed as many cells as the set
-    # has corners: a corner that no LMI certifies ends the search before the cells are solved
-    ordered = corners[weakest_first(params, corners)]
-    checks: list[np.ndarray] = []  # gain vertices to check alone before the next level
-    wave = [bounding if root is None else root]
-    while wave:
-        todo = []
-        for box in wave:
-            cell = _clip(polytope, *box)
-            if cell.is_empty():
-                empty.append(box)
-            else:
-                todo.append((box, cell))
-        known = [memo.recall(box, cell) for box, cell in todo]
-        fresh = [k for k, cert in enumerate(known) if cert is None]
-        unchecked = [action for action in checks if memo.vertex(action) is None]
-        beside = ([ordered[0]] if solves == 0 and len(fresh) == 1
-                  and memo.vertex(ordered[0]) is None else [])
-        if solves + len(unchecked) + len(fresh) + len(beside) > budget:
-            return unfinished(f"budget of {budget} solves spent with {len(fresh)} cells left")
+    # the plan decides what to solve (planner); this loop solves it in the pool (executor)
+    plan = CoverPlan(polytope, corners[weakest_first(params, corners)], root)
+    while plan.wave:
+        level = plan.level(memo)
+        unchecked, beside = plan.corner_checks(memo), plan.beside(memo, level)
+        if plan.solves + len(unchecked) + len(level.fresh) + len(beside) > budget:
+            return plan.unfinished(f"budget of {budget} solves spent with {len(level.fresh)} "
+                                   "cells left")
         failed = memo.failed_vertex(polytope)  # (one checked beside the last level may fail)
         if failed is None:
-            solves += _check_alone(params, unchecked, memo)
+            plan.solves += _check_alone(params, unchecked, memo)
             failed = memo.failed_vertex(polytope)
         if failed is not None:
-            return unfinished(f"the gain vertex {failed[0].tolist()} is not certified alone",
-                           (failed[1],))
+            return plan.unfinished(f"the gain vertex {failed[0].tolist()} is not certified "
+                                   "alone", (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
-                  max(tl_max, tr_max), len(cells), len(fresh), len(todo) - len(fresh))
-        solves += _solve_level(params, todo, known, fresh, memo, beside)
-        checks, wave, certified_before = [], [], len(cells)
-        for (box, cell), cert in zip(todo, known, strict=True):
-            if cert is None:  # not solved: its level's most promising cells failed
-                failures += 1
-                wave.extend(_halves(*box))
-                continue
-            if cert.certified:
-                cells.append(cell)
-                certs.append(cert)
-                boxes.append(box)
-                continue
-            if not _splittable(*box):
-                return unfinished(f"the cell around {box[0].tolist()} is too small to split "
-                               "further", (cert,))
-            failures += 1
-            wave.extend(_halves(*box))
-        level_failed = len(cells) == certified_before
-        if level_failed:
-            wave = _split_again(wave)
-        if failures == 1 and wave:  # one round of the weakest corners not yet checked
-            checks = [action for action in ordered if memo.vertex(action) is None
-                      ][:CORNERS_AT_ONCE]
-        elif wave and not vertices_checked and (level_failed or failures >= len(corners)):
-            vertices_checked = True
-            checks = list(ordered)
-    return Cover(True, tuple(cells), tuple(certs), solves, "", tuple(boxes), tuple(empty),
-                 root=root)
+                  max(tl_max, tr_max), len(plan.cells), len(level.fresh),
+                  len(level.todo) - len(level.fresh))
+        solved, count = _solve_level(params, level, memo, beside)
+        plan.solves += count
+        known = [solved.get(k, cert) for k, cert in enumerate(level.known)]
+        stop = plan.absorb(Level(level.todo, known, level.fresh), memo)
+        if stop is not None:
+            return stop
+    return plan.finished()
 
 
-def _solve_level(params: TeleoperatorParams,
-                 todo: list[tuple[tuple[np.ndarray, np.ndarray], GainPolytope]],
-                 known: list[Certificate | None], fresh: list[int], memo: CellMemo,
-                 beside: Sequence[np.ndarray] = ()) -> int:
-    """Solve the ``fresh`` cells of a level into ``known`` and the memo; return the solves.
+def _solve_level(params: TeleoperatorParams, level: Level, memo: CellMemo,
+                 beside: Sequence[np.ndarray] = ()) -> tuple[dict[int, Certificate], int]:
+    """Solve a level's fresh cells into the memo; return their verdicts and the solves spent.
 
     A level of more than :data:`PROBES` cells, all of which could be split, is probed first:
     its :data:`PROBES` most promising cells (largest closed-form margin at their weakest
     vertex) are solved, and the others only if every probe is certified. Otherwise the level
-    would mostly fail (the others stay ``None``, to be split without a solve). The gain
+    would mostly fail (the others stay unsolved, to be split without a solve). The gain
     vertices ``beside`` are checked alone side by side with the level's first solves (the
     first cell, the whole set, gets its weakest corner beside it: on a second core the check
     costs no time, and it is the first thing needed when the set fails).
     """
     (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
-    corners = [(vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
-               for action in beside]
+    todo, fresh = level.todo, level.fresh
+    solved: dict[int, Certificate] = {}
 
-    def solve(indices: list[int]) -> list[Certificate]:
+    def solve(indices: list[int], corners: Sequence[np.ndarray]) -> list[Certificate]:
         cells = [(lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
                                     delay_lower, CELL_RETRY)) for k in indices]
-        solved = map_solves(_call, cells + corners, share_cores=True)
-        for action, verdict in zip(beside, solved[len(cells):], strict=True):
+        checks = [(vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
+                  for action in corners]
+        verdicts = map_solves(_call, cells + checks, share_cores=True)
+        for action, verdict in zip(corners, verdicts[len(cells):], strict=True):
             memo.record_vertex(action, verdict)
-        corners.clear()
-        for k, cert in zip(indices, solved[:len(cells)], strict=True):
-            known[k] = cert
+        for k, cert in zip(indices, verdicts[:len(cells)], strict=True):
+            solved[k] = cert
             memo.record(*todo[k], cert)
-        return solved[:len(cells)]
+        return verdicts[:len(cells)]
 
     extra = len(beside)
-    if len(fresh) <= PROBES or not all(_splittable(*todo[k][0]) for k in fresh):
-        return len(solve(fresh)) + extra
+    if len(fresh) <= PROBES or not all(splittable(todo[k][0]) for k in fresh):
+        return solved, len(solve(fresh, beside)) + extra
     promise = [float(nuno_joint_margins(params, todo[k][1].vertices()).min()) for k in fresh]
     order = [fresh[i] for i in np.argsort(promise, kind="stable")[::-1]]
-    probed = solve(order[:PROBES])
+    probed = solve(order[:PROBES], beside)
     if not all(cert.certified for cert in probed):
         _log.info("the %d most promising of %d cells failed: splitting the level", PROBES,
                   len(fresh))
-        return PROBES + extra
-    return PROBES + extra + len(solve(order[PROBES:]))
+        return solved, PROBES + extra
+    return solved, PROBES + extra + len(solve(order[PROBES:], ()))
 
 
 def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: CellMemo) -> int:

@@ -22,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from certify import Certificate
-from teleopkit.certification.gain_sets import GainBox, GainPolytope, box_within
+from teleopkit.certification.gain_sets import GainPolytope, box_within
 from teleopkit.certification.lmi.cover import Cover
+from teleopkit.certification.lmi.planner import clip
 from teleopkit.certification.lmi.systems import NO_LOWER, gain_set_system
 from teleopkit.model.params import TeleoperatorParams
 
@@ -150,7 +151,7 @@ def check_proof(params: TeleoperatorParams, polytope: GainPolytope, proof: Mappi
         _check_tiling(polytope, [b for b in boxes if b is not None], [_box(b) for b in empty],
                       _box(proof.get("root")))
     for index, (cell, box) in enumerate(zip(cells, boxes, strict=True)):
-        region = polytope if box is None else _clip(polytope, box)
+        region = polytope if box is None else clip(polytope, box)
         if not _solution_holds(params, region, variation, cell.get("lmi"), proved, floors):
             raise ValueError(f"the LMI solution of cell {index} of the certificate's proof does "
                              "not hold for its plant and gains (edited?)")
@@ -166,14 +167,6 @@ def _box(data: Any) -> tuple[np.ndarray, np.ndarray] | None:
     if low.shape != high.shape or low.ndim != 1 or not np.all(np.isfinite([low, high])):
         raise ValueError("the certificate's LMI proof has a malformed box")
     return low, high
-
-
-def _clip(polytope: GainPolytope, box: tuple[np.ndarray, np.ndarray]) -> GainPolytope:
-    low, high = box
-    n = low.size // 2
-    cut = GainPolytope.from_box(GainBox(tuple(zip(low[:n], high[:n], strict=True)),
-                                        tuple(zip(low[n:], high[n:], strict=True))))
-    return polytope.intersect(cut.G, cut.h, cut.labels)
 
 
 def _check_tiling(polytope: GainPolytope, cells: list[tuple[np.ndarray, np.ndarray]],
@@ -211,7 +204,7 @@ def _check_tiling(polytope: GainPolytope, cells: list[tuple[np.ndarray, np.ndarr
     if not np.isclose(total, volume((low, high)), rtol=_VOLUME_RTOL, atol=0):
         raise ValueError("the cells of the certificate's LMI proof do not cover its gain set")
     for box in empty:
-        if box is None or not _clip(polytope, box).is_empty():
+        if box is None or not clip(polytope, box).is_empty():
             raise ValueError("a box the certificate's LMI proof calls empty meets the gain set")
 
 
