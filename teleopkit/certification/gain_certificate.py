@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Any
 
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
@@ -51,10 +53,11 @@ class GainCertificate:
         What the verdict rests on.
     violation : str or None
         When not certified: the violating vertex and condition.
-    details : dict
-        Method-specific data (for the LMI, the solver's certificate as JSON-ready data).
-    plant : dict
-        The plant certified (:func:`~teleopkit.model.params.plant_record`).
+    details : mapping
+        Method-specific data (for the LMI, the solver's certificate as JSON-ready data); kept
+        as a read-only view.
+    plant : mapping
+        The plant certified (:func:`~teleopkit.model.params.plant_record`); read-only.
     delay_lower : tuple of float
         ``(T_l_min, T_r_min)``: the delays certified lie in ``[T_i_min, T_i*]`` (0: from 0).
     """
@@ -69,13 +72,16 @@ class GainCertificate:
     polytope_certified: bool
     assumptions: tuple[str, ...]
     violation: str | None = None
-    details: dict[str, Any] = field(default_factory=dict)
-    plant: dict[str, Any] = field(default_factory=dict)
+    details: Mapping[str, Any] = field(default_factory=dict)
+    plant: Mapping[str, Any] = field(default_factory=dict)
     delay_lower: tuple[float, float] = (0.0, 0.0)
     _variation: GainVariation = field(init=False, repr=False, compare=False)
     _scheduled: ScheduledSet | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        # a value: its mappings are read-only views of copies
+        object.__setattr__(self, "details", MappingProxyType(dict(self.details)))
+        object.__setattr__(self, "plant", MappingProxyType(dict(self.plant)))
         # the parsed forms are computed once, here (a bad class or set fails at construction)
         object.__setattr__(self, "_variation", parse_gain_variation(self.gain_variation))
         data = self.details.get("set")
@@ -173,8 +179,8 @@ class GainCertificate:
             "polytope_certified": self.polytope_certified,
             "assumptions": list(self.assumptions),
             "violation": self.violation,
-            "details": self.details,
-            "plant": self.plant,
+            "details": dict(self.details),
+            "plant": dict(self.plant),
             "delay_lower": list(self.delay_lower),
         }
 

@@ -29,7 +29,7 @@ __all__ = ["check_certificate", "load_certificate", "verify_certificate"]
 
 def _plain(data: Any) -> Any:
     """``data`` as JSON reads it back (tuples become lists)."""
-    return json.loads(json.dumps(data))
+    return json.loads(json.dumps(data, default=dict))  # read-only views as the dicts they show
 
 
 def _check_closed_form(certificate: GainCertificate) -> None:
