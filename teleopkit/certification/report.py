@@ -6,6 +6,7 @@ from collections.abc import Sequence
 
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.model.params import PlanarArm, TeleoperatorParams, plant_record
+from teleopkit.setup.reading import listed
 
 __all__ = ["CLASSES_PAGE", "certificate_table"]
 
@@ -92,17 +93,14 @@ def plant_text(params: TeleoperatorParams) -> str:
         S_r [100, 100], J_r [0.3, 0.3]; K_l [25, 25], B_l [10, 10]; K_s 10, K_d 2
         (fingerprint ...)``.
     """
-    def values(items: tuple[float, ...]) -> str:
-        return "[" + ", ".join(f"{v:g}" for v in items) + "]"
-
     def arm(name: str, value: PlanarArm) -> str:
-        extra = "" if value.com is None else f", com {values(value.com)} m"
-        extra += "" if value.inertia is None else f", I {values(value.inertia)} kg m^2"
-        return f"{name} arm l {values(value.lengths)} m, m {values(value.masses)} kg{extra}"
+        extra = "" if value.com is None else f", com {listed(value.com)} m"
+        extra += "" if value.inertia is None else f", I {listed(value.inertia)} kg m^2"
+        return f"{name} arm l {listed(value.lengths)} m, m {listed(value.masses)} kg{extra}"
 
     record = plant_record(params)
     return (f"{arm('local', params.local_arm)}; {arm('remote', params.remote_arm)}; "
-            f"S_r {values(params.joints.stiffness)}, J_r {values(params.joints.rotor_inertia)}; "
-            f"K_l {values(params.local_gains.stiffness)}, B_l "
-            f"{values(params.local_gains.damping)}; K_s {params.operator.stiffness:g}, "
+            f"S_r {listed(params.joints.stiffness)}, J_r {listed(params.joints.rotor_inertia)}; "
+            f"K_l {listed(params.local_gains.stiffness)}, B_l "
+            f"{listed(params.local_gains.damping)}; K_s {params.operator.stiffness:g}, "
             f"K_d {params.operator.damping:g} (fingerprint {record['fingerprint']})")
