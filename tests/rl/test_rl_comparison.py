@@ -78,3 +78,23 @@ def test_the_comparison_always_has_the_frozen_reference():
     again = Comparators.from_dict(json.loads(json.dumps(comparators.to_dict())))
     key = again.key(TANK, FlexTeleopConfig(certificate=TANK))
     assert key == again.fingerprint and again.semi_active == (3.0, 1.0, 40.0)
+
+
+def test_a_tuner_plays_with_what_it_observes_and_how_often_it_decides():
+    """A policy trained on the adaptive observation, deciding every 5 periods, is compared so."""
+    config = FlexTeleopConfig(certificate=TANK, episode_length=0.2, observation="adaptive",
+                              decision_period=5)
+    policy = TD3.for_env(FlexTeleopVectorEnv(1, config), seed=0).policy(
+        {"certificate": TANK.to_dict(), "gain_variation": TANK.gain_variation,
+         "observation": "adaptive", "decision_period": 5})
+    short = np.array([[2.0, 2.0, 5.0, 5.0]] * 20)
+    comparators = Comparators("tank:3", "any", np.array([3.4, 7.4, 8.6, 18.5]),
+                              np.array([3.0, 3.0, 7.5, 7.5]), (3.0, 1.0, 40.0), short)
+    table = compare([policy], 2, 5, duration=0.2, comparators=comparators)
+    tuner = table[table["controller"] == "TD3 (tank:3)"]
+    assert len(tuner) == 2 and (tuner["unsafe_actions"] == 0).all()
+    # held over 5 periods: at most 4 distinct gains in the 20 periods of each run
+    schedule = Comparators("tank:3", "any", short[0], short[0], (3.0, 1.0, 40.0), None)
+    played = schedule.for_policy(policy, FlexTeleopConfig(certificate=TANK, episode_length=0.2))
+    assert played.schedule.shape == (20, 4)
+    assert len(np.unique(played.schedule.round(12), axis=0)) <= 4
