@@ -13,6 +13,7 @@ from typing import cast
 
 import numpy as np
 
+from teleopkit.delays.combinators import StackedDelay
 from teleopkit.delays.paper_fit import PAPER_DELAY_MAX, PAPER_DELAY_MIN
 from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
@@ -172,8 +173,6 @@ def _repeat_delay(profile: DelayProfile, batch: int, times: int) -> DelayProfile
         return FourierDelay(np.tile(profile.scale, times), profile.bound)
     if isinstance(profile, ConstantDelay):
         return ConstantDelay(np.tile(profile.value, times), profile.bound)
-    from teleopkit.delays.combinators import StackedDelay
-
     return StackedDelay((profile,) * times)
 
 
