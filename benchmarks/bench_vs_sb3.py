@@ -1,7 +1,7 @@
 """Time to 10 % below the frozen best static gains: teleopkit's trainer against Stable-Baselines3.
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
-        [--discounts 0.95 0.99] [--which teleopkit sb3]
+        [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
@@ -53,10 +53,12 @@ class _Reached(Exception):
 
 
 def _teleopkit(seed: int, discount: float, rounds: int, target: float,
-               config: FlexTeleopConfig) -> tuple[int, float, float]:
+               config: FlexTeleopConfig, envs: int) -> tuple[int, float, float]:
     """Round, validation cost and wall time of teleopkit's recipe at the first round below."""
-    per_round = RECIPE.num_envs * config.max_steps
-    settings = TrainConfig(total_steps=rounds * per_round, seed=seed,
+    per_round = envs * config.max_steps
+    settings = TrainConfig(total_steps=rounds * per_round, seed=seed, num_envs=envs,
+                           learning_starts=per_round,
+                           buffer_size=max(RECIPE.buffer_size, 2 * per_round),
                            td3=TD3Config(discount=discount, actor_lr=1e-3, critic_lr=1e-3))
     last: list[float] = []
     with tempfile.TemporaryDirectory() as out:
@@ -74,13 +76,14 @@ def _teleopkit(seed: int, discount: float, rounds: int, target: float,
 
 
 def _sb3(seed: int, discount: float, rounds: int, target: float,
-         config: FlexTeleopConfig) -> tuple[int, float, float]:
+         config: FlexTeleopConfig, envs: int) -> tuple[int, float, float]:
     """Round, validation cost and wall time of SB3's TD3 at the first round below."""
     start = time.perf_counter()
-    env = _SB3View(FlexTeleopVectorEnv(RECIPE.num_envs, config), seed)
-    per_round = RECIPE.num_envs * config.max_steps
+    env = _SB3View(FlexTeleopVectorEnv(envs, config), seed)
+    per_round = envs * config.max_steps
     half = (env.high - env.low) / 2
-    model = TD3("MlpPolicy", env, learning_rate=1e-3, buffer_size=RECIPE.buffer_size,
+    model = TD3("MlpPolicy", env, learning_rate=1e-3,
+                buffer_size=max(RECIPE.buffer_size, 2 * per_round),
                 learning_starts=per_round, batch_size=RECIPE.td3.batch_size, tau=0.005,
                 gamma=discount, train_freq=(1, "step"), gradient_steps=1, policy_delay=2,
                 target_policy_noise=0.2, target_noise_clip=0.5,
@@ -187,6 +190,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=12)
     parser.add_argument("--discounts", nargs="+", type=float, default=[0.95, 0.99])
     parser.add_argument("--which", nargs="+", default=["teleopkit", "sb3"])
+    parser.add_argument("--envs", type=int, default=RECIPE.num_envs,
+                        help="parallel scenarios of both trainers (a round is one episode each)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -198,15 +203,16 @@ def main() -> None:
           f"{static.round(3).tolist()}, found in {time.perf_counter() - start:.0f} s)")
     config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
-    print("\n| trainer | discount | seed | round | validation cost | time to it [s] |")
-    print("|---|---|---|---|---|---|")
+    print("\n| trainer | envs | discount | seed | round | validation cost | time to it [s] |")
+    print("|---|---|---|---|---|---|---|")
     for name in args.which:
         for discount in args.discounts:
             for seed in args.seeds:
-                done, cost, wall = trainers[name](seed, discount, args.rounds, target, config)
+                done, cost, wall = trainers[name](seed, discount, args.rounds, target, config,
+                                                  args.envs)
                 mark = "" if cost <= target else f" (not within {args.rounds} rounds)"
-                print(f"| {name} | {discount:g} | {seed} | {done} | {cost:.0f}{mark} | "
-                      f"{wall:.0f} |", flush=True)
+                print(f"| {name} | {args.envs} | {discount:g} | {seed} | {done} | "
+                      f"{cost:.0f}{mark} | {wall:.0f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.cells import CellMemo
 from teleopkit.certification.lmi.cover import cover_certificate
 from teleopkit.certification.lmi.proof import check_proof, cover_proof
-from teleopkit.certification.lmi.systems import LMI_METHOD, NO_LOWER
+from teleopkit.certification.lmi.systems import DelayQuestion
 
 BOUND = 1.45  # between the switching (1.33 s) and the frozen (1.55 s) margin of the box
 WHOLE = GainPolytope.from_box(GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1))
@@ -17,8 +17,12 @@ WHOLE = GainPolytope.from_box(GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joint
 CUT = WHOLE.intersect(np.array([[1.0, -0.1]]), np.array([6.9]), ("corner cut",))
 
 
+def _ask(params) -> DelayQuestion:
+    return DelayQuestion(params, (BOUND, BOUND))
+
+
 def _memo(params) -> CellMemo:
-    return CellMemo(params, (BOUND, BOUND), LMI_METHOD, NO_LOWER)
+    return CellMemo(_ask(params))
 
 
 def _sound(params, polytope, cover) -> None:
@@ -31,7 +35,7 @@ def _sound(params, polytope, cover) -> None:
 @pytest.fixture(scope="module")
 def fresh(one_joint):
     """Both sets covered without a memo: the solves each costs alone."""
-    return {name: cover_certificate(one_joint, polytope, BOUND, BOUND)
+    return {name: cover_certificate(_ask(one_joint), polytope)
             for name, polytope in (("whole", WHOLE), ("cut", CUT))}
 
 
@@ -40,8 +44,8 @@ def fresh(one_joint):
 def test_a_second_cover_of_a_nested_set_costs_fewer_solves(one_joint, fresh, first, then):
     sets = {"whole": WHOLE, "cut": CUT}
     memo = _memo(one_joint)
-    cover_certificate(one_joint, sets[first], BOUND, BOUND, memo=memo)
-    second = cover_certificate(one_joint, sets[then], BOUND, BOUND, memo=memo)
+    cover_certificate(_ask(one_joint), sets[first], memo=memo)
+    second = cover_certificate(_ask(one_joint), sets[then], memo=memo)
     _sound(one_joint, sets[then], second)
     assert second.solves < fresh[then].solves
 
@@ -50,7 +54,7 @@ def test_recall_goes_by_inclusion_only(one_joint, fresh):
     memo = _memo(one_joint)
     box = (np.array([5.0, 30.0]), np.array([10.0, 60.0]))  # the bounding box of both sets
     assert memo.recall(box, CUT) is None  # nothing known yet
-    cover_certificate(one_joint, CUT, BOUND, BOUND, memo=memo)
+    cover_certificate(_ask(one_joint), CUT, memo=memo)
     assert fresh["cut"].solves > 1  # the cut as one cell failed, so the whole box fails too
     recalled = memo.recall(box, WHOLE)
     assert recalled is not None and not recalled.certified
@@ -59,9 +63,9 @@ def test_recall_goes_by_inclusion_only(one_joint, fresh):
 
 
 def test_a_memo_of_another_question_is_refused(one_joint):
-    other = CellMemo(one_joint, (1.0, 1.0), LMI_METHOD, NO_LOWER)
+    other = CellMemo(DelayQuestion(one_joint, (1.0, 1.0)))
     with pytest.raises(ValueError, match="another question"):
-        cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=other)
+        cover_certificate(_ask(one_joint), WHOLE, memo=other)
 
 
 ROOT = (np.array([5.0, 30.0]), np.array([10.0, 60.0]))
@@ -70,20 +74,20 @@ STRIP = WHOLE.intersect(np.array([[-1.0, 0.0]]), np.array([-5.5]), ("K_r >= 5.5"
 
 
 def test_sets_with_other_bounding_boxes_share_cells_split_from_one_root(one_joint):
-    fresh = cover_certificate(one_joint, STRIP, BOUND, BOUND, root=ROOT)
+    fresh = cover_certificate(_ask(one_joint), STRIP, root=ROOT)
     memo = _memo(one_joint)
-    cover_certificate(one_joint, WHOLE, BOUND, BOUND, memo=memo, root=ROOT)
-    strip = cover_certificate(one_joint, STRIP, BOUND, BOUND, memo=memo, root=ROOT)
+    cover_certificate(_ask(one_joint), WHOLE, memo=memo, root=ROOT)
+    strip = cover_certificate(_ask(one_joint), STRIP, memo=memo, root=ROOT)
     _sound(one_joint, STRIP, strip)
     assert strip.solves < fresh.solves
 
 
 def test_a_proof_s_root_must_contain_the_set(one_joint):
-    cover = cover_certificate(one_joint, STRIP, BOUND, BOUND, root=ROOT)
+    cover = cover_certificate(_ask(one_joint), STRIP, root=ROOT)
     proof = cover_proof(cover, (BOUND, BOUND))
     assert proof["root"] == [ROOT[0].tolist(), ROOT[1].tolist()]
     shrunk = {**proof, "root": [[6.0, 30.0], [10.0, 60.0]]}  # misses K_r in [5.5, 6]
     with pytest.raises(ValueError, match="root box"):
         check_proof(one_joint, STRIP, shrunk, (BOUND, BOUND), ("switching",))
     with pytest.raises(ValueError, match="outside the root box"):
-        cover_certificate(one_joint, WHOLE, BOUND, BOUND, root=(ROOT[0] + 1.0, ROOT[1]))
+        cover_certificate(_ask(one_joint), WHOLE, root=(ROOT[0] + 1.0, ROOT[1]))

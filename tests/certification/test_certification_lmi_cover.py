@@ -8,7 +8,7 @@ import pytest
 from certify import PolytopicDelaySystem, exact_constant_margin, max_delay
 from teleopkit.certification import certify_gains
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.lmi import cover
+from teleopkit.certification.lmi import systems
 from teleopkit.certification.lmi.cells import CellMemo
 from teleopkit.certification.lmi.cover import (
     CORNERS_AT_ONCE,
@@ -26,6 +26,7 @@ from teleopkit.certification.lmi.planner import Level, _split_again, clip, halve
 from teleopkit.certification.lmi.systems import (
     CHANNELS,
     LMI_METHOD,
+    DelayQuestion,
     lmi_certificate,
     lmi_delay_margin,
     vertex_certificate,
@@ -42,10 +43,15 @@ from teleopkit.model.params import paper_setup
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
 
 
+def _ask(params, bound: float) -> DelayQuestion:
+    """The LMI question for a common delay bound ``T_l* = T_r* = bound``."""
+    return DelayQuestion(params, (bound, bound))
+
+
 @pytest.fixture(scope="module")
 def tight_cover(one_joint):
     """A bound between the switching (1.33 s) and the frozen (1.55 s) margin of NARROW."""
-    return cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45)
+    return cover_certificate(_ask(one_joint, 1.45), GainPolytope.from_box(NARROW))
 
 
 def test_a_bound_beyond_the_switching_margin_needs_several_cells(one_joint, tight_cover):
@@ -66,19 +72,19 @@ def test_the_cells_cover_the_set_and_interior_gains_are_certified(one_joint, tig
 
 
 def test_a_bound_beyond_a_vertex_margin_fails_at_that_vertex(one_joint):
-    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.7, 1.7)
+    cover = cover_certificate(_ask(one_joint, 1.7), GainPolytope.from_box(NARROW))
     # the whole set, then the weakest corner alone, which fails: no cell is solved after it
     assert not cover.certified and "gain vertex" in cover.reason and cover.solves == 2
 
 
 def test_a_failed_gain_point_in_the_memo_ends_a_cover_without_solves(one_joint):
     whole = GainPolytope.from_box(NARROW)
-    first = cover_certificate(one_joint, whole, 1.7, 1.7)
-    memo = CellMemo(one_joint, (1.7, 1.7), LMI_METHOD, (0.0, 0.0))
+    first = cover_certificate(_ask(one_joint, 1.7), whole)
+    memo = CellMemo(_ask(one_joint, 1.7))
     failed_point = np.array([10.0, 30.0])
     memo.record_vertex(failed_point, first.certificates[-1])
     inner = GainPolytope.from_box(GainBox(((6.0, 10.0),), ((30.0, 50.0),)))
-    again = cover_certificate(one_joint, inner, 1.7, 1.7, memo=memo)
+    again = cover_certificate(_ask(one_joint, 1.7), inner, memo=memo)
     assert not again.certified and again.solves == 0 and "[10.0, 30.0]" in again.reason
     elsewhere = GainPolytope.from_box(GainBox(((5.0, 6.0),), ((50.0, 60.0),)))
     assert memo.failed_vertex(elsewhere) is None
@@ -95,14 +101,14 @@ def test_after_a_wholly_failed_level_the_next_cells_are_quarters(tight_cover):
 
 
 def test_a_spent_budget_is_not_certified(one_joint):
-    cover = cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.45, 1.45, budget=2)
+    cover = cover_certificate(_ask(one_joint, 1.45), GainPolytope.from_box(NARROW), budget=2)
     assert not cover.certified and "budget of 2 solves" in cover.reason
 
 
 def test_small_sets_and_switching_gains_are_one_lmi(one_joint):
     whole = GainPolytope.from_box(NARROW)
-    assert set_certificate(one_joint, whole, 1.0, 1.0, "switching").solves == 1
-    assert set_certificate(one_joint, whole, 1.5, 1.5, "frozen").cells == (whole,)
+    assert set_certificate(_ask(one_joint, 1.0), whole, "switching").solves == 1
+    assert set_certificate(_ask(one_joint, 1.5), whole, "frozen").cells == (whole,)
 
 
 @pytest.fixture(scope="module")
@@ -136,10 +142,10 @@ def test_bad_input(one_joint):
     with pytest.raises(ValueError, match="shrink"):
         cover_margin(one_joint, GainPolytope.from_box(NARROW), shrink=1.0)
     with pytest.raises(ValueError, match="budget"):
-        cover_certificate(one_joint, GainPolytope.from_box(NARROW), 1.0, 1.0, budget=0)
+        cover_certificate(_ask(one_joint, 1.0), GainPolytope.from_box(NARROW), budget=0)
     empty = nuno_polytope(one_joint, GainBox(((40.0, 50.0),), ((1.0, 5.0),)), 1.0, 1.0)
     with pytest.raises(ValueError, match="empty"):
-        cover_certificate(one_joint, empty, 1.0, 1.0)
+        cover_certificate(_ask(one_joint, 1.0), empty)
 
 
 @pytest.mark.slow
@@ -147,7 +153,7 @@ def test_paper_closed_form_set_is_covered_by_the_lmi():
     """Two joints: the closed form's set at T* = 1 s, every constant gain LMI-certified."""
     params = paper_setup()
     closed = nuno_polytope(params, GainBox.uniform((1.0, 50.0), (1.0, 150.0)), 1.0, 1.0)
-    cover = cover_certificate(params, closed, 1.0, 1.0)
+    cover = cover_certificate(_ask(params, 1.0), closed)
     assert cover.certified, cover.reason
 
 
@@ -185,11 +191,11 @@ def test_the_parallel_vertex_margin_agrees_with_a_bisection(one_joint, action, g
 
 
 def test_corners_checked_alone_stop_at_the_first_batch_with_a_failure(one_joint):
-    memo = CellMemo(one_joint, (1.7, 1.7), LMI_METHOD, (0.0, 0.0))
+    memo = CellMemo(_ask(one_joint, 1.7))
     corners = GainPolytope.from_box(NARROW).vertices()
     weakest_first_order = sorted(corners.tolist(), key=lambda a: (-a[0], a[1]))  # (10, 30) first
     actions = [np.array(a) for a in weakest_first_order]
-    assert _check_alone(one_joint, actions, memo) == CORNERS_AT_ONCE
+    assert _check_alone(actions, memo) == CORNERS_AT_ONCE
     assert memo.failed_vertex(GainPolytope.from_box(NARROW)) is not None
     assert memo.vertex(actions[-1]) is None  # never solved
 
@@ -206,11 +212,11 @@ def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, mo
     assert len(todo) == 4 > PROBES
     for verdict, solves in ((bad, PROBES), (good, len(todo))):
         calls: list[GainPolytope] = []
-        monkeypatch.setattr(cover, "lmi_certificate",
+        monkeypatch.setattr(systems, "lmi_certificate",
                             lambda *args, v=verdict, seen=calls, **_: seen.append(args[1]) or v)
-        memo = CellMemo(one_joint, (1.45, 1.45), LMI_METHOD, (0.0, 0.0))
+        memo = CellMemo(_ask(one_joint, 1.45))
         level = Level(todo, [None] * len(todo), list(range(len(todo))))
-        solved, count = _solve_level(one_joint, level, memo)
+        solved, count = _solve_level(level, memo)
         assert count == solves
         assert len(calls) == solves and len(solved) == solves
     probed = sorted(range(len(todo)), key=lambda k: -promise[k])[:PROBES]
@@ -219,10 +225,10 @@ def test_a_level_whose_most_promising_cells_fail_is_split_unsolved(one_joint, mo
 
 def test_the_whole_set_is_solved_beside_its_weakest_corner(one_joint):
     polytope = GainPolytope.from_box(NARROW)
-    memo = CellMemo(one_joint, (1.0, 1.0), LMI_METHOD, (0.0, 0.0))
+    memo = CellMemo(_ask(one_joint, 1.0))
     corners = polytope.vertices()
     weakest = corners[weakest_first(one_joint, corners)[0]]
-    cover = cover_certificate(one_joint, polytope, 1.0, 1.0, memo=memo)
+    cover = cover_certificate(_ask(one_joint, 1.0), polytope, memo=memo)
     # one level: the set as one cell and its weakest corner alone, side by side
     assert cover.certified and len(cover.cells) == 1 and cover.solves == 2
     verdict = memo.vertex(weakest)

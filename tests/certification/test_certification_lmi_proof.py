@@ -14,6 +14,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.cover import cover_certificate
 from teleopkit.certification.lmi.proof import check_proof, cover_proof
+from teleopkit.certification.lmi.systems import DelayQuestion
 from teleopkit.model.params import ElasticJoints, plant_record
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
@@ -30,7 +31,7 @@ def frozen(one_joint):
 @pytest.fixture(scope="module")
 def proof(one_joint):
     """A cover of cells (1.45 s lies between the switching and the frozen margin)."""
-    cover = cover_certificate(one_joint, SET, 1.45, 1.45)
+    cover = cover_certificate(DelayQuestion(one_joint, (1.45, 1.45)), SET)
     assert cover.certified and len(cover.cells) > 1
     return cover_proof(cover, (1.45, 1.45))
 

@@ -25,8 +25,7 @@ import numpy as np
 
 from certify import Certificate
 from teleopkit.certification.gain_sets import GainPolytope
-from teleopkit.certification.lmi.systems import gain_set_system
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.certification.lmi.systems import DelayQuestion, gain_set_system
 
 __all__ = ["CellMemo"]
 
@@ -49,43 +48,17 @@ class CellMemo:
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator.
-    bounds : tuple of float
-        Delay bounds ``(T_l*, T_r*)``.
-    method : str
-        A :data:`certify.METHODS` name.
-    delay_lower : tuple of float
-        Lower delay bounds ``(T_l_min, T_r_min)``.
+    question : DelayQuestion
+        What every verdict answers.
     """
 
-    params: TeleoperatorParams
-    bounds: tuple[float, float]
-    method: str
-    delay_lower: tuple[float, float]
+    question: DelayQuestion
     _certified: dict[bytes, list[tuple[GainPolytope, Certificate]]] = field(
         default_factory=dict, init=False, repr=False)
     _failed: dict[bytes, list[tuple[GainPolytope, Certificate]]] = field(
         default_factory=dict, init=False, repr=False)
     _vertices: dict[bytes, tuple[np.ndarray, Certificate]] = field(
         default_factory=dict, init=False, repr=False)
-
-    def answers(self, params: TeleoperatorParams, bounds: tuple[float, float], method: str,
-                delay_lower: tuple[float, float]) -> bool:
-        """Whether the memo holds verdicts of this question.
-
-        Parameters
-        ----------
-        params, bounds, method, delay_lower
-            The question, as the memo's fields.
-
-        Returns
-        -------
-        bool
-            ``True`` if every part matches.
-        """
-        return (params == self.params and tuple(bounds) == tuple(self.bounds)
-                and method == self.method and tuple(delay_lower) == tuple(self.delay_lower))
 
     def recall(self, box: Box, cell: GainPolytope) -> Certificate | None:
         """The verdict on a cell that follows from earlier ones, if one does.
@@ -106,8 +79,8 @@ class CellMemo:
         key = _key(np.concatenate(box))
         for region, cert in self._certified.get(key, ()):
             if _inside(cell, region):
-                reused = dataclasses.replace(cert, system=gain_set_system(self.params, cell,
-                                                                          "switching"))
+                system = gain_set_system(self.question.params, cell, "switching")
+                reused = dataclasses.replace(cert, system=system)
                 if reused.verify():
                     return reused
         for region, cert in self._failed.get(key, ()):

@@ -51,8 +51,8 @@ from teleopkit.certification.lmi.planner import (
 from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
+    DelayQuestion,
     enumerated,
-    lmi_certificate,
     vertex_certificate,
 )
 from teleopkit.certification.lmi.workers import map_solves, workers
@@ -83,27 +83,19 @@ LIMIT_RTOL = 0.05
 _SMALLEST = 1e-4
 """A bracket ``[T_min, T_min + this]`` without a certified bound ends a margin search (0 s)."""
 
-def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
-                      tr_max: float, method: str = LMI_METHOD, budget: int = CELL_BUDGET,
-                      delay_lower: tuple[float, float] = NO_LOWER,
-                      memo: CellMemo | None = None,
+def cover_certificate(question: DelayQuestion, polytope: GainPolytope,
+                      budget: int = CELL_BUDGET, memo: CellMemo | None = None,
                       root: tuple[np.ndarray, np.ndarray] | None = None) -> Cover:
-    """Certify every constant gain of a polytope for delays up to ``(T_l*, T_r*)`` by cells.
+    """Certify every constant gain of a polytope for a question's delays, by cells.
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator.
+    question : DelayQuestion
+        Plant, delay bounds, lower bounds and LMI method.
     polytope : GainPolytope
         Remote gains (a product of one polygon per joint), not empty.
-    tl_max, tr_max : float
-        Delay bounds in seconds.
-    method : str
-        A :data:`certify.METHODS` name.
     budget : int
         Most LMI solves to spend (vertex checks included).
-    delay_lower : tuple of float
-        Lower delay bounds ``(T_l_min, T_r_min)``.
     memo : CellMemo, optional
         Verdicts of earlier covers of the same question, used and extended
         (:mod:`~teleopkit.certification.lmi.cells`); by default a new one.
@@ -128,14 +120,14 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     corners = polytope.vertices()
     if corners.size == 0:
         raise ValueError("the gain set is empty: nothing to certify")
-    memo = memo if memo is not None else CellMemo(params, (tl_max, tr_max), method, delay_lower)
-    if not memo.answers(params, (tl_max, tr_max), method, delay_lower):
+    memo = memo if memo is not None else CellMemo(question)
+    if memo.question != question:
         raise ValueError("the cell memo holds verdicts of another question (plant, delay "
                          "bounds or method)")
     if root is not None and not box_within((corners.min(axis=0), corners.max(axis=0)), root):
         raise ValueError("the gain set reaches outside the root box of its cover")
     # the plan decides what to solve (planner); this loop solves it in the pool (executor)
-    plan = CoverPlan(polytope, corners[weakest_first(params, corners)], root)
+    plan = CoverPlan(polytope, corners[weakest_first(question.params, corners)], root)
     while plan.wave:
         level = plan.level(memo)
         unchecked, beside = plan.corner_checks(memo), plan.beside(memo, level)
@@ -144,15 +136,15 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
                                    "cells left")
         failed = memo.failed_vertex(polytope)  # (one checked beside the last level may fail)
         if failed is None:
-            plan.solves += _check_alone(params, unchecked, memo)
+            plan.solves += _check_alone(unchecked, memo)
             failed = memo.failed_vertex(polytope)
         if failed is not None:
             return plan.unfinished(f"the gain vertex {failed[0].tolist()} is not certified "
                                    "alone", (failed[1],))
         _log.info("T* = %.4g s: %d cells certified, solving %d (%d known)",
-                  max(tl_max, tr_max), len(plan.cells), len(level.fresh),
+                  max(question.bounds), len(plan.cells), len(level.fresh),
                   len(level.todo) - len(level.fresh))
-        solved, count = _solve_level(params, level, memo, beside)
+        solved, count = _solve_level(level, memo, beside)
         plan.solves += count
         known = [solved.get(k, cert) for k, cert in enumerate(level.known)]
         stop = plan.absorb(Level(level.todo, known, level.fresh), memo)
@@ -161,8 +153,8 @@ def cover_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max
     return plan.finished()
 
 
-def _solve_level(params: TeleoperatorParams, level: Level, memo: CellMemo,
-                 beside: Sequence[np.ndarray] = ()) -> tuple[dict[int, Certificate], int]:
+def _solve_level(level: Level, memo: CellMemo, beside: Sequence[np.ndarray] = (),
+                 ) -> tuple[dict[int, Certificate], int]:
     """Solve a level's fresh cells into the memo; return their verdicts and the solves spent.
 
     A level of more than :data:`PROBES` cells, all of which could be split, is probed first:
@@ -173,15 +165,12 @@ def _solve_level(params: TeleoperatorParams, level: Level, memo: CellMemo,
     first cell, the whole set, gets its weakest corner beside it: on a second core the check
     costs no time, and it is the first thing needed when the set fails).
     """
-    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
-    todo, fresh = level.todo, level.fresh
+    question, todo, fresh = memo.question, level.todo, level.fresh
     solved: dict[int, Certificate] = {}
 
     def solve(indices: list[int], corners: Sequence[np.ndarray]) -> list[Certificate]:
-        cells = [(lmi_certificate, (params, todo[k][1], tl_max, tr_max, "switching", method,
-                                    delay_lower, CELL_RETRY)) for k in indices]
-        checks = [(vertex_certificate, (params, action, tl_max, tr_max, method, delay_lower))
-                  for action in corners]
+        cells = [(question.cell, (todo[k][1], "switching", CELL_RETRY)) for k in indices]
+        checks = [(question.vertex, (action,)) for action in corners]
         verdicts = map_solves(_call, cells + checks, share_cores=True)
         for action, verdict in zip(corners, verdicts[len(cells):], strict=True):
             memo.record_vertex(action, verdict)
@@ -193,7 +182,8 @@ def _solve_level(params: TeleoperatorParams, level: Level, memo: CellMemo,
     extra = len(beside)
     if len(fresh) <= PROBES or not all(splittable(todo[k][0]) for k in fresh):
         return solved, len(solve(fresh, beside)) + extra
-    promise = [float(nuno_joint_margins(params, todo[k][1].vertices()).min()) for k in fresh]
+    promise = [float(nuno_joint_margins(question.params, todo[k][1].vertices()).min())
+               for k in fresh]
     order = [fresh[i] for i in np.argsort(promise, kind="stable")[::-1]]
     probed = solve(order[:PROBES], beside)
     if not all(cert.certified for cert in probed):
@@ -203,19 +193,17 @@ def _solve_level(params: TeleoperatorParams, level: Level, memo: CellMemo,
     return solved, PROBES + extra + len(solve(order[PROBES:], ()))
 
 
-def _check_alone(params: TeleoperatorParams, actions: list[np.ndarray], memo: CellMemo) -> int:
+def _check_alone(actions: list[np.ndarray], memo: CellMemo) -> int:
     """Solve gain vertices alone into the memo, :data:`CORNERS_AT_ONCE` at a time, in order.
 
     Stops after the first batch with a vertex not certified (which ends the cover); returns the
     number of solves.
     """
-    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
     solves = 0
     for start in range(0, len(actions), CORNERS_AT_ONCE):
         batch = actions[start:start + CORNERS_AT_ONCE]
-        solved = map_solves(_call, [(vertex_certificate, (params, action, tl_max, tr_max,
-                                                          method, delay_lower))
-                                    for action in batch], share_cores=True)
+        solved = map_solves(_call, [(memo.question.vertex, (action,)) for action in batch],
+                            share_cores=True)
         solves += len(solved)
         for action, verdict in zip(batch, solved, strict=True):
             memo.record_vertex(action, verdict)
@@ -229,33 +217,25 @@ def _call(solve: Callable[..., Certificate], args: tuple, threads: int = 0) -> C
     return solve(*args, threads=threads)
 
 
-def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: float,
-                    tr_max: float, variation: str = "frozen", method: str = LMI_METHOD,
-                    budget: int = CELL_BUDGET,
-                    delay_lower: tuple[float, float] = NO_LOWER,
+def set_certificate(question: DelayQuestion, polytope: GainPolytope,
+                    variation: str = "frozen", budget: int = CELL_BUDGET,
                     memo: CellMemo | None = None,
                     root: tuple[np.ndarray, np.ndarray] | None = None) -> Cover:
     """Certify a gain set the cheapest sound way: one LMI, or cells for many constant gains.
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator.
+    question : DelayQuestion
+        Plant, delay bounds, lower bounds and LMI method.
     polytope : GainPolytope
         Remote gains, not empty.
-    tl_max, tr_max : float
-        Delay bounds in seconds.
     variation : {"frozen", "switching"}
         Gain class. Frozen gains beyond :func:`~teleopkit.certification.lmi.systems.enumerated` are
         covered by cells (:func:`cover_certificate`); everything else is one LMI
         (:func:`~teleopkit.certification.lmi.systems.lmi_certificate`), reported as a one-cell
         cover.
-    method : str
-        A :data:`certify.METHODS` name.
     budget : int
         Most solves for a cover.
-    delay_lower : tuple of float
-        Lower delay bounds ``(T_l_min, T_r_min)``.
     memo : CellMemo, optional
         Verdicts of earlier covers of the same question, for a cover.
     root : tuple of ndarray, optional
@@ -266,13 +246,12 @@ def set_certificate(params: TeleoperatorParams, polytope: GainPolytope, tl_max: 
     Cover
         The verdict.
     """
-    if variation == "frozen" and not enumerated(params, polytope):
-        return cover_certificate(params, polytope, tl_max, tr_max, method, budget, delay_lower,
-                                 memo, root)
-    cert = lmi_certificate(params, polytope, tl_max, tr_max, variation, method, delay_lower)
+    if variation == "frozen" and not enumerated(question.params, polytope):
+        return cover_certificate(question, polytope, budget, memo, root)
+    cert = question.cell(polytope, variation)
     if cert.certified:
         return Cover(True, (polytope,), (cert,), 1, boxes=(None,), variation=variation)
-    return Cover(False, (), (cert,), 1, f"LMI ({method}) {cert.status}, not certified",
+    return Cover(False, (), (cert,), 1, f"LMI ({question.method}) {cert.status}, not certified",
                  variation=variation)
 
 
@@ -458,7 +437,8 @@ def cover_margin(params: TeleoperatorParams, polytope: GainPolytope, method: str
         if bound <= known:
             break
         _log.info("delay margin in [%.4g, %.4g] s: trying %.4g s", known, top, bound)
-        cover = cover_certificate(params, polytope, bound, bound, method, budget, delay_lower)
+        question = DelayQuestion(params, (bound, bound), delay_lower, method)
+        cover = cover_certificate(question, polytope, budget)
         solves += cover.solves
         if cover.certified:
             return CoverMargin(bound, top, vertex, cover, solves)

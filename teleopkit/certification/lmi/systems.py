@@ -26,6 +26,8 @@ less conservative than one multiplier certificate: it covers the set with cells 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from certify import (
@@ -40,8 +42,8 @@ from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.model.linearize import rest_systems
 from teleopkit.model.params import TeleoperatorParams
 
-__all__ = ["CHANNELS", "LMI_METHOD", "MAX_VERTICES", "NO_LOWER", "VERTEX_RETRY", "enumerated",
-           "gain_names", "gain_set_system", "lmi_certificate", "lmi_delay_margin",
+__all__ = ["CHANNELS", "LMI_METHOD", "MAX_VERTICES", "NO_LOWER", "VERTEX_RETRY", "DelayQuestion",
+           "enumerated", "gain_names", "gain_set_system", "lmi_certificate", "lmi_delay_margin",
            "vertex_certificate"]
 
 MAX_VERTICES = 16
@@ -274,3 +276,90 @@ def vertex_certificate(params: TeleoperatorParams, action: np.ndarray, tl_max: f
     return certify_delay(_vertex_system(params, action), [tl_max, tr_max], method,
                          lower=list(delay_lower), channels=CHANNELS, retry=VERTEX_RETRY,
                          threads=threads)
+
+
+@dataclass(frozen=True)
+class DelayQuestion:
+    """One LMI question about gains: stable on this plant for these delays, by this method.
+
+    What every cell and gain vertex of a cover is asked
+    (:func:`~teleopkit.certification.lmi.cover.cover_certificate`), and what a
+    :class:`~teleopkit.certification.lmi.cells.CellMemo` holds verdicts of; the gain set is
+    given to each call.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        Teleoperator.
+    bounds : tuple of float
+        Delay bounds ``(T_l*, T_r*)`` in seconds.
+    lower : tuple of float
+        Lower delay bounds ``(T_l_min, T_r_min)``: the delays lie in ``[T_i_min, T_i*]``.
+    method : str
+        A :data:`certify.METHODS` name (the LMI formulation).
+    """
+
+    params: TeleoperatorParams
+    bounds: tuple[float, float]
+    lower: tuple[float, float] = NO_LOWER
+    method: str = LMI_METHOD
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bounds", tuple(float(b) for b in self.bounds))
+        object.__setattr__(self, "lower", tuple(float(b) for b in self.lower))
+
+    def at(self, bound: float) -> DelayQuestion:
+        """The same question for the common delay bound ``T_l* = T_r* = bound``.
+
+        Parameters
+        ----------
+        bound : float
+            Delay bound in seconds.
+
+        Returns
+        -------
+        DelayQuestion
+            The question with its bounds replaced.
+        """
+        return DelayQuestion(self.params, (bound, bound), self.lower, self.method)
+
+    def cell(self, polytope: GainPolytope, variation: str = "frozen", retry: str = "always",
+             threads: int = 1) -> Certificate:
+        """:func:`lmi_certificate` of a gain polytope for this question.
+
+        Parameters
+        ----------
+        polytope : GainPolytope
+            Remote gains.
+        variation : {"frozen", "switching"}
+            Gain class.
+        retry : {"always", "accurate"}
+            When a failed solve is tried again in balanced coordinates.
+        threads : int
+            Most threads of the solver's linear algebra (0: its default).
+
+        Returns
+        -------
+        certify.Certificate
+            The LMI certificate.
+        """
+        return lmi_certificate(self.params, polytope, *self.bounds, variation, self.method,
+                               self.lower, retry, threads)
+
+    def vertex(self, action: np.ndarray, threads: int = 1) -> Certificate:
+        """:func:`vertex_certificate` of one constant gain vector for this question.
+
+        Parameters
+        ----------
+        action : ndarray, shape (2 n,)
+            Remote gains ``[K_r..., B_r...]``.
+        threads : int
+            Most threads of the solver's linear algebra (0: its default).
+
+        Returns
+        -------
+        certify.Certificate
+            The LMI certificate of the gain at every rest configuration.
+        """
+        return vertex_certificate(self.params, action, *self.bounds, self.method, self.lower,
+                                  threads)

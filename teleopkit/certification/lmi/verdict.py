@@ -29,10 +29,10 @@ from teleopkit.certification.lmi.proof import certificate_proof, check_proof, co
 from teleopkit.certification.lmi.systems import (
     LMI_METHOD,
     NO_LOWER,
+    DelayQuestion,
     enumerated,
     lmi_certificate,
     lmi_delay_margin,
-    vertex_certificate,
 )
 from teleopkit.certification.lmi.workers import Background, map_solves, start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
@@ -66,12 +66,12 @@ a large certified set (two covers at most)."""
 def _lmi_violation(params: TeleoperatorParams, box: GainBox, memo: CellMemo) -> str:
     """Name a gain vertex of the box the LMI cannot certify alone, if there is one."""
     n = box.n_joints
-    (tl_max, tr_max), method = memo.bounds, memo.method
+    (tl_max, tr_max), method = memo.question.bounds, memo.question.method
     corners = GainPolytope.from_box(box).vertices()
     for action in corners[weakest_first(params, corners)]:
         cert = memo.vertex(action)
         if cert is None:
-            cert = vertex_certificate(params, action, tl_max, tr_max, method, memo.delay_lower)
+            cert = memo.question.vertex(action)
             memo.record_vertex(action, cert)
         if not cert.certified:
             return (f"LMI ({method}) infeasible at the vertex K_r = {action[:n].tolist()}, "
@@ -114,7 +114,7 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: in
     ``proven``. Returns ``s`` and the member's cover (``s = 1`` and ``None`` if no member was
     certified).
     """
-    (tl_max, tr_max), method, delay_lower = memo.bounds, memo.method, memo.delay_lower
+    tl_max, tr_max = memo.question.bounds
     root = (box.lower, box.upper)  # every member is split from the box: their cells line up
     covers: dict[float, Cover] = {}
 
@@ -124,8 +124,7 @@ def _lmi_polytope(params: TeleoperatorParams, box: GainBox, kind: str, steps: in
         polytope = cut_polytope(params, box, tl_max, tr_max, scale)
         if polytope.is_empty():
             return False
-        covers[scale] = set_certificate(params, polytope, tl_max, tr_max, kind, method,
-                                        delay_lower=delay_lower, memo=memo, root=root)
+        covers[scale] = set_certificate(memo.question, polytope, kind, memo=memo, root=root)
         if covers[scale].certified:
             proven(scale, covers[scale])
         return covers[scale].certified
@@ -179,9 +178,8 @@ def certify_lmi(question: Question, method: str = LMI_METHOD, steps: int = 3,
     start_workers()  # while the first solves run here
     limit = (Background(limiting_vertex, params, whole, method, delay_lower)  # beside the covers
              if kind == "frozen" and not enumerated(params, whole) else None)
-    memo = CellMemo(params, bounds, method, delay_lower)  # shared by the covers of one question
-    verdict = set_certificate(params, whole, tl_max, tr_max, kind, method,
-                              delay_lower=delay_lower, memo=memo, root=(box.lower, box.upper))
+    memo = CellMemo(DelayQuestion(params, bounds, delay_lower, method))  # shared by the covers
+    verdict = set_certificate(memo.question, whole, kind, memo=memo, root=(box.lower, box.upper))
     cert = verdict.certificates[-1]
     proof_details: dict[str, Any] = {}
 
