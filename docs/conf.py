@@ -46,12 +46,13 @@ extensions = [
     "sphinx_click",
     "reexports",  # docs/_ext: references to teleopkit.X / certify.X re-exports
     "cli_page",  # docs/_ext: plain defaults and literal addresses on the command-line page
+    "myst_parser",  # Markdown pages (benchmark_history.md)
 ]
 templates_path = ["_templates"]
 exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py",
                     "auto_examples/*.zip", "auto_examples/*.json", "auto_examples/*.md5",
                     "**.codeobj.json"]
-source_suffix = {".rst": "restructuredtext"}
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 pygments_style = "sphinx"
 smartquotes = False  # keep "--json" and quotes literal: copied commands must run
@@ -158,7 +159,8 @@ html_show_sourcelink = False
 viewcode_follow_imported_members = False
 # Pages without sub-pages have no section to navigate: no empty "Section Navigation" sidebar.
 html_sidebars = {page: [] for page in ("getting_started", "certified", "performance",
-                                       "troubleshooting", "changelog", "citing", "references")}
+                                       "benchmark_history", "troubleshooting", "changelog",
+                                       "citing", "references")}
 
 
 def _skip_aliases(app: object, what: str, name: str, obj: object, skip: bool,
