@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -145,20 +145,38 @@ class StackedDelay:
     order : tuple of int, optional
         Column permutation applied after concatenation (``out = concat[:, order]``); identity by
         default.
+
+    Notes
+    -----
+    A part that appears several times (the same object, for example one drawn profile shared
+    by many scenarios) is sampled once per call and its columns repeated.
     """
 
     parts: tuple[DelayProfile, ...]
     order: tuple[int, ...] = ()
+    _distinct: tuple[DelayProfile, ...] = field(init=False, repr=False, compare=False)
+    _gather: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not self.parts:
             raise ValueError("a stacked delay needs at least one profile")
         object.__setattr__(self, "parts", tuple(self.parts))
-        width = sum(_width(part) for part in self.parts)
-        order = tuple(int(i) for i in self.order) or tuple(range(width))
-        if sorted(order) != list(range(width)):
-            raise ValueError(f"stacked delay order must be a permutation of range({width})")
+        distinct: dict[int, tuple[DelayProfile, int, int]] = {}  # id -> part, first, width
+        columns: list[np.ndarray] = []
+        start = 0
+        for part in self.parts:
+            if id(part) not in distinct:
+                distinct[id(part)] = (part, start, _width(part))
+                start += distinct[id(part)][2]
+            _, first, width = distinct[id(part)]
+            columns.append(np.arange(first, first + width))
+        gather = np.concatenate(columns)
+        order = tuple(int(i) for i in self.order) or tuple(range(gather.size))
+        if sorted(order) != list(range(gather.size)):
+            raise ValueError(f"stacked delay order must be a permutation of range({gather.size})")
         object.__setattr__(self, "order", order)
+        object.__setattr__(self, "_distinct", tuple(part for part, _, _ in distinct.values()))
+        object.__setattr__(self, "_gather", gather[list(order)])
 
     @property
     def bound(self) -> float:
@@ -183,7 +201,7 @@ class StackedDelay:
         ndarray, shape (S, B)
             Delays in seconds, ``B`` the total batch of the parts.
         """
-        return self._joined([part.sample(t) for part in self.parts])
+        return self._joined([part.sample(t) for part in self._distinct])
 
     @property
     def jumps(self) -> bool:
@@ -203,11 +221,11 @@ class StackedDelay:
         ndarray, shape (S, B)
             Delays in seconds, ``B`` the total batch of the parts.
         """
-        return self._joined([sample_left(part, t) for part in self.parts])
+        return self._joined([sample_left(part, t) for part in self._distinct])
 
     def _joined(self, values: list[np.ndarray]) -> np.ndarray:
-        """The parts' columns side by side, in :attr:`order`."""
-        return np.concatenate(values, axis=1)[:, list(self.order)]
+        """The distinct parts' samples, columns repeated for every appearance, in :attr:`order`."""
+        return np.concatenate(values, axis=1)[:, self._gather]
 
 
 def _merge(kind: type, members: list[DelayProfile]) -> DelayProfile:

@@ -64,3 +64,29 @@ def test_wrappers_jump_as_their_parts_and_continuous_profiles_do_not():
     np.testing.assert_array_equal(stacked.sample_left(t),
                                   np.concatenate([FourierDelay(1.0).sample(t),
                                                   switching.sample_left(t)], axis=1))
+
+
+def test_a_part_shared_by_several_scenarios_is_sampled_once_per_call():
+    """Stacking one profile object many times gives its columns repeated, from one sample."""
+    calls: list[int] = []
+
+    class Counted(SinusoidalDelay):
+        def sample(self, t):
+            calls.append(1)
+            return super().sample(t)
+
+    shared = Counted(0.5, 0.2, 1.0, phase=[0.0, 1.0])
+    other = SwitchingDelay(0.1, 0.9, dwell=0.25, seed=4, batch=1)
+    stacked = StackedDelay((shared, other, shared, shared), order=(6, 0, 1, 2, 3, 4, 5))
+    t = np.linspace(0.0, 2.0, 9)
+    calls.clear()
+    values = stacked.sample(t)
+    alone = np.concatenate([shared.sample(t), other.sample(t), shared.sample(t),
+                            shared.sample(t)], axis=1)[:, [6, 0, 1, 2, 3, 4, 5]]
+    assert len(calls) == 1 + 3  # once in the stack, three times for the reference
+    np.testing.assert_array_equal(values, alone)
+    left = np.concatenate([shared.sample(t), sample_left(other, t), shared.sample(t),
+                           shared.sample(t)], axis=1)[:, [6, 0, 1, 2, 3, 4, 5]]
+    np.testing.assert_array_equal(stacked.sample_left(t), left)
+    with pytest.raises(ValueError, match="permutation"):
+        StackedDelay((shared, other), order=(0, 1))
