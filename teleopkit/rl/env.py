@@ -464,6 +464,14 @@ class FlexTeleopVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         """Applied actions outside the certified set since construction (must stay 0)."""
         return self._core.unsafe_actions
 
+    @property
+    def seconds(self) -> dict[str, float]:
+        """Wall time of the safety projection and of the simulation since construction.
+
+        The ``seconds`` of the batch's :class:`~teleopkit.safety.CertifiedLoop`.
+        """
+        return dict(self._core.loop.seconds)
+
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Start new episodes in every sub-environment.

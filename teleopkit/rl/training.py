@@ -22,9 +22,11 @@ the next.
 Files in ``out_dir``: ``checkpoint.pt`` (``torch.save``; loads with ``weights_only=True``),
 ``certificate.json`` (the certificate trained under), ``train_log.csv`` (one row per round: ``step,
 round, episode_return, critic_loss, actor_loss, exploration_std, validation_cost, wall_time,
-unsafe_actions``; the episode return is that of the exploring policy, averaged over the
-sub-environments; ``unsafe_actions`` counts applied actions outside the certified set, cumulatively,
-and must stay 0), ``policy.npz`` (the last actor as a :class:`~teleopkit.rl.td3.GainPolicy`),
+unsafe_actions, simulation_time, projection_time, update_time, validation_time``; the episode
+return is that of the exploring policy, averaged over the sub-environments; ``unsafe_actions``
+counts applied actions outside the certified set, cumulatively, and must stay 0; ``wall_time`` is
+cumulative, the four last split the round's time: the simulator's periods, the safety layer, the
+TD3 updates and the validation), ``policy.npz`` (the last actor as a :class:`~teleopkit.rl.td3.GainPolicy`),
 ``best_policy.npz`` (the best by validation) and ``config.json``. Each is written to a temporary
 file in the same directory and moved into place with :func:`os.replace`, so a kill at any moment
 leaves either the previous or the new complete file.
@@ -323,22 +325,25 @@ class _Run:
         self.held_uniform = self.low[:n] + fraction * (self.high[:n] - self.low[:n])
         self.held_noise = np.repeat(self.explore.normal(size=(self.config.num_envs, 1)), n, axis=1)
 
-    def _learn(self, losses: list[dict[str, float]]) -> None:
-        """Fix the normaliser once, then run the updates of one vector step."""
+    def _learn(self, losses: list[dict[str, float]]) -> float:
+        """Fix the normaliser once, then run the updates of one vector step; their seconds."""
         if self.counters.step < self.config.learning_starts:
-            return
+            return 0.0
+        started = time.perf_counter()
         if not self.counters.normalised:
             filled = self.buffer.obs[:len(self.buffer)]
             self.agent.set_normalizer(filled.mean(axis=0), filled.std(axis=0))
             self.counters.normalised = True
         for _ in range(self.config.updates_per_step):
             losses.append(self.agent.update(self.buffer.sample(self.config.td3.batch_size)))
+        return time.perf_counter() - started
 
     def run_round(self, on_step: Callable[[int], None]) -> None:
         """One episode of every sub-environment, learning as it goes, then a log row."""
         start = time.perf_counter()
         counters = self.counters
-        unsafe = self.env.unsafe_actions
+        unsafe, env_seconds = self.env.unsafe_actions, self.env.seconds
+        updating = 0.0
         first = counters.rounds == 0
         obs, _ = self.env.reset(seed=self.env_seed if first else None)
         self._draw_held()
@@ -351,15 +356,20 @@ class _Run:
             returns += reward
             counters.step += self.config.num_envs
             counters.vector_steps += 1
-            self._learn(losses)
+            updating += self._learn(losses)
             obs = next_obs
             done = bool(terminated.any() or truncated.any())
             on_step(self.config.num_envs)
         counters.rounds += 1
         counters.unsafe_actions += self.env.unsafe_actions - unsafe
+        validating = time.perf_counter()
         validation = self._validate()
-        counters.wall_time += time.perf_counter() - start
-        counters.log.append(self._log_row(returns, losses, validation))
+        now = time.perf_counter()
+        counters.wall_time += now - start
+        split = {f"{part}_time": seconds - env_seconds[part]
+                 for part, seconds in self.env.seconds.items()}
+        split.update(update_time=updating, validation_time=now - validating)
+        counters.log.append({**self._log_row(returns, losses, validation), **split})
 
     def _validate(self) -> float:
         """Validation cost of the deterministic actor; keep the actor if it is the best."""
@@ -420,7 +430,8 @@ class _Run:
     def log_frame(self) -> pd.DataFrame:
         """The log as a table."""
         columns = ["step", "round", "episode_return", "critic_loss", "actor_loss",
-                   "exploration_std", "validation_cost", "wall_time", "unsafe_actions"]
+                   "exploration_std", "validation_cost", "wall_time", "unsafe_actions",
+                   "simulation_time", "projection_time", "update_time", "validation_time"]
         return pd.DataFrame(self.counters.log, columns=columns)
 
 

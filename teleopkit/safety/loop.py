@@ -7,6 +7,8 @@ the certified set (``CertifiedLoop.unsafe_actions``, which must stay 0).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from teleopkit.delays.profiles import delay_floor
@@ -32,10 +34,15 @@ class CertifiedLoop:
         Applied actions outside the certified set since construction (must stay 0).
     unsafe_by_run : ndarray of int, shape (B,)
         The same count per scenario of the current episode.
+    seconds : dict of str to float
+        Wall time spent since construction in ``"projection"`` (the safety layer, its check and
+        its measurements) and in ``"simulation"`` (the simulator's periods): where a step's
+        time goes.
     """
 
     def __init__(self, layer: SafetyLayer) -> None:
         self.layer = layer
+        self.seconds = {"projection": 0.0, "simulation": 0.0}
         self.unsafe_actions = 0
         self.unsafe_by_run = np.zeros(0, dtype=np.int64)
         self._simulator: Simulator | None = None
@@ -103,14 +110,19 @@ class CertifiedLoop:
             What the safety layer did; ``projection.action`` are the applied gains.
         """
         simulator = self.simulator
+        started = time.perf_counter()
         raw = np.asarray(raw, dtype=np.float64).reshape(simulator.batch, -1)
         projection = self.layer.step(raw)
         applied = projection.action
         unsafe = ~self.layer.contains(applied)
         self.unsafe_by_run += unsafe
         self.unsafe_actions += int(np.count_nonzero(unsafe))
+        projected = time.perf_counter()
         result = simulator.advance(applied)
+        simulated = time.perf_counter()
         self._measure(result.state[-1])
+        self.seconds["simulation"] += simulated - projected
+        self.seconds["projection"] += (projected - started) + (time.perf_counter() - simulated)
         return result, projection
 
     def run(self, simulator: Simulator, raw: np.ndarray) -> tuple[Trajectory, np.ndarray]:

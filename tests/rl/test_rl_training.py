@@ -63,12 +63,19 @@ def test_log_is_a_readable_csv_with_one_row_per_round(tmp_path):
     log = pd.read_csv(tmp_path / LOG)
     assert list(log.columns) == ["step", "round", "episode_return", "critic_loss", "actor_loss",
                                  "exploration_std", "validation_cost", "wall_time",
-                                 "unsafe_actions"]
+                                 "unsafe_actions", "simulation_time", "projection_time",
+                                 "update_time", "validation_time"]
     assert log["step"].tolist() == [40 * k for k in range(1, 13)]
     # learning starts with the last step of round 2 (80 transitions)
     assert log["critic_loss"].iloc[:1].isna().all() and log["critic_loss"].iloc[1:].notna().all()
     assert (log["unsafe_actions"] == 0).all() and log["wall_time"].is_monotonic_increasing
     assert np.all(log["episode_return"] < 0)
+    # the split of each round's time: parts of it, no updates before learning starts
+    split = log[["simulation_time", "projection_time", "update_time", "validation_time"]]
+    assert (split >= 0).all().all() and (split.iloc[:, [0, 1, 3]] > 0).all().all()
+    assert log["update_time"].iloc[0] == 0 and (log["update_time"].iloc[1:] > 0).all()
+    rounds = log["wall_time"].diff().fillna(log["wall_time"].iloc[0])
+    assert (split.sum(axis=1) <= rounds + 1e-9).all()
     pd.testing.assert_frame_equal(log, result.log, check_dtype=False)
     assert (tmp_path / POLICY).exists() and (tmp_path / "config.json").exists()
     best = GainPolicy.load(tmp_path / BEST_POLICY)
