@@ -26,10 +26,11 @@ unsafe_actions, simulation_time, projection_time, update_time, validation_time``
 return is that of the exploring policy, averaged over the sub-environments; ``unsafe_actions``
 counts applied actions outside the certified set, cumulatively, and must stay 0; ``wall_time`` is
 cumulative, the four last split the round's time: the simulator's periods, the safety layer, the
-TD3 updates and the validation), ``policy.npz`` (the last actor as a :class:`~teleopkit.rl.td3.GainPolicy`),
-``best_policy.npz`` (the best by validation) and ``config.json``. Each is written to a temporary
-file in the same directory and moved into place with :func:`os.replace`, so a kill at any moment
-leaves either the previous or the new complete file.
+TD3 updates and the validation), ``policy.npz`` (the last actor as a
+:class:`~teleopkit.rl.td3.GainPolicy`), ``best_policy.npz`` (the best by validation) and
+``config.json``. Each is written to a temporary file in the same directory and moved into place
+with :func:`os.replace`, so a kill at any moment leaves either the previous or the new complete
+file.
 """
 
 from __future__ import annotations
