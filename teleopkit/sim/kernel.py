@@ -7,7 +7,7 @@ exactly the model of :mod:`teleopkit.model.dynamics`,
 :class:`teleopkit.sim.state.StateLayout` (``12 n`` values per scenario; the kernel addresses its
 blocks by constant offsets, which the comparison with the numpy integrator checks).
 
-Layout for speed (measured reasons in ``benchmarks/README.md``):
+Layout for speed (measured reasons in ``docs/benchmark_history.md``):
 
 - The batch is cut into blocks of :data:`LANES` scenarios, integrated in parallel (``prange``).
   Inside a block the state is stored structure-of-arrays (``[variable, lane]``) and each

@@ -44,7 +44,7 @@ CALL_VALUES = 1 << 20
 (16 MB of inputs for both channels): a run of up to 655 s with profiles that have ``factors``, a
 40 s run of one scenario otherwise, or 16 periods of a batch of 4096. Long calls are faster
 (each block of scenarios reads history its thread has just written) until their inputs stop
-fitting in memory already touched (``benchmarks/README.md`` has the measurements)."""
+fitting in memory already touched (measured in ``docs/benchmark_history.md``)."""
 
 if TYPE_CHECKING:
     import pandas as pd
