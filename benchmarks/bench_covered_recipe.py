@@ -3,7 +3,7 @@
     NUMBA_NUM_THREADS=2 python benchmarks/bench_covered_recipe.py [--seeds 0 1 2] [--rounds 12]
 
 Trains the recipe of ``teleopkit train`` (``TrainConfig()`` under its covering class,
-``teleopkit.rl.training.COVERING_CLASS``) seed by seed, alone on the machine, and stops a seed at
+``teleopkit.rl.env.COVERING_CLASS``) seed by seed, alone on the machine, and stops a seed at
 the first round whose validation cost (the deterministic actor under the covering certificate,
 16 validation scenarios) is at least 10 % below that of the best static gains of the frozen class
 on the same scenarios. Prints, per seed, that round and the training's wall-clock time to it
@@ -23,9 +23,9 @@ import torch
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
-from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.training import COVERING_CLASS, TrainConfig, train
+from teleopkit.rl.training import TrainConfig, train
 
 
 class _Reached(Exception):

@@ -39,10 +39,10 @@ from stable_baselines3.common.vec_env import VecEnv
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
-from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
+from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
 from teleopkit.rl.td3 import TD3Config
-from teleopkit.rl.training import COVERING_CLASS, TrainConfig, train
+from teleopkit.rl.training import TrainConfig, train
 
 RECIPE = TrainConfig()
 REWARD_SCALE = RECIPE.td3.reward_scale

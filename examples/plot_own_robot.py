@@ -31,10 +31,10 @@ import teleopkit as tk
 from teleopkit.certification.certifier import certify_gains, default_certificate
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.rl.comparison import REFERENCE, compare
-from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
 from teleopkit.rl.evaluation import summarise, to_markdown
 from teleopkit.rl.policy import GainPolicy
-from teleopkit.rl.training import BEST_POLICY, COVERING_CLASS, TrainConfig, train
+from teleopkit.rl.training import BEST_POLICY, TrainConfig, train
 
 torch.set_num_threads(1)  # small networks; the simulator needs the other core
 

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import click
 
 from teleopkit.cli.certificates import certify
+from teleopkit.cli.laws import search_law_command
 from teleopkit.cli.robustness import campaign_command, falsify_command
 from teleopkit.cli.setup import setup_command
 from teleopkit.cli.simulate import simulate_command
@@ -28,8 +29,8 @@ def cli() -> None:
     """Delayed bilateral teleoperation: simulate, certify, train and evaluate gain tuners."""
 
 
-for _command in (setup_command, simulate_command, certify, train_command, evaluate_command,
-                 reproduce_command, campaign_command, falsify_command):
+for _command in (setup_command, simulate_command, certify, train_command, search_law_command,
+                 evaluate_command, reproduce_command, campaign_command, falsify_command):
     cli.add_command(_command)
 
 

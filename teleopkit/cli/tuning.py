@@ -49,7 +49,7 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
               help="Gain class to train under, on the closed form's certificate of the default "
                    "box (K_r in [1, 50], B_r in [1, 150]) for the delays the setup's network "
                    "reaches [default: the recipe's covering class, "
-                   "teleopkit.rl.training.COVERING_CLASS].")
+                   "teleopkit.rl.env.COVERING_CLASS].")
 @click.option("--observation", type=click.Choice(["paper", "adaptive"]), default="paper",
               show_default=True,
               help="What the tuner observes: the paper's 7 values per joint, or the adaptive "
@@ -126,7 +126,8 @@ def _training_certificate(out: Path, resume: bool, variation: object,
     checkpoint's settings check, which names it.
     """
     from teleopkit.certification.certifier import default_certificate
-    from teleopkit.rl.training import CERTIFICATE, COVERING_CLASS
+    from teleopkit.rl.env import COVERING_CLASS
+    from teleopkit.rl.training import CERTIFICATE
 
     bounds = config.setup.network.reached_bounds
     from teleopkit.safety.factory import layer_for

@@ -57,6 +57,7 @@ from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 from teleopkit.sim.trajectory import StepResult
 
 __all__ = [
+    "COVERING_CLASS",
     "ENV_ID",
     "BatchStep",
     "FlexTeleopConfig",
@@ -64,6 +65,12 @@ __all__ = [
     "FlexTeleopVectorEnv",
     "TeleopBatch",
 ]
+
+
+COVERING_CLASS = "tank:3"
+"""The gain class tuners are trained and searched under by default (``teleopkit train``,
+``teleopkit search-law``): its certificate covers every schedule a tuner plays
+(``examples/train_covered.py`` measures the TD3 recipe)."""
 
 
 @dataclass(frozen=True)

@@ -83,11 +83,17 @@ class GainPolicy:
         Output map ``low + span * softplus(z)``.
     metadata : dict, optional
         JSON-serialisable information (training settings, baselines, ...).
+    obs_range : tuple of ndarray, optional
+        ``(lowest, highest)`` observation, each of shape ``(obs_dim,)``: observations are
+        clipped into this range before anything else, so that the policy never extrapolates
+        beyond what it was fitted on (for example the range seen while a gain law was
+        searched). None: not clipped.
     """
 
     def __init__(self, weights: list[tuple[np.ndarray, np.ndarray]], obs_mean: np.ndarray,
                  obs_std: np.ndarray, low: np.ndarray, span: np.ndarray,
-                 metadata: dict[str, Any] | None = None) -> None:
+                 metadata: dict[str, Any] | None = None,
+                 obs_range: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.weights = [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
                         for w, b in weights]
         self.obs_mean = np.asarray(obs_mean, dtype=np.float64)
@@ -95,6 +101,10 @@ class GainPolicy:
         self.low = np.asarray(low, dtype=np.float64)
         self.span = np.asarray(span, dtype=np.float64)
         self.metadata = dict(metadata or {})
+        self.obs_range = None if obs_range is None else (
+            np.asarray(obs_range[0], dtype=np.float64), np.asarray(obs_range[1], dtype=np.float64))
+        if self.obs_range is not None and not np.all(self.obs_range[0] <= self.obs_range[1]):
+            raise ValueError("the observation range's lowest values must not exceed its highest")
 
     @classmethod
     def from_actor(cls, actor: Actor, metadata: dict[str, Any] | None = None) -> GainPolicy:
@@ -125,13 +135,16 @@ class GainPolicy:
         """SHA-256 of the weights and maps, 16 hex digits (what the policy computes)."""
         digest = hashlib.sha256()
         for array in (*(a for pair in self.weights for a in pair), self.obs_mean, self.obs_std,
-                      self.low, self.span):
+                      self.low, self.span, *(self.obs_range or ())):
             digest.update(np.ascontiguousarray(array).tobytes())
         return digest.hexdigest()[:16]
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Raw gains for one observation ``(obs_dim,)`` or a batch ``(B, obs_dim)``."""
-        x = (np.asarray(obs, dtype=np.float64) - self.obs_mean) / self.obs_std
+        x = np.asarray(obs, dtype=np.float64)
+        if self.obs_range is not None:
+            x = np.clip(x, *self.obs_range)
+        x = (x - self.obs_mean) / self.obs_std
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(self.weights):
             x = x @ w.T + b
@@ -152,6 +165,8 @@ class GainPolicy:
                                          "metadata": np.array(json.dumps(self.metadata))}
         for i, (w, b) in enumerate(self.weights):
             arrays[f"w{i}"], arrays[f"b{i}"] = w.astype(np.float32), b.astype(np.float32)
+        if self.obs_range is not None:
+            arrays["obs_lowest"], arrays["obs_highest"] = self.obs_range
         with open(path, "wb") as handle:
             np.savez_compressed(handle, **arrays)
 
@@ -181,8 +196,10 @@ class GainPolicy:
                 layers = sum(1 for key in data.files if key.startswith("w"))
                 weights = [(data[f"w{i}"], data[f"b{i}"]) for i in range(layers)]
                 metadata = json.loads(str(data["metadata"]))
+                clipped = "obs_lowest" in data.files
                 return cls(weights, data["obs_mean"], data["obs_std"], data["low"],
-                           data["span"], metadata)
+                           data["span"], metadata,
+                           (data["obs_lowest"], data["obs_highest"]) if clipped else None)
         except KeyError as error:
             raise ValueError(f"{path} is not a teleopkit policy file (no {error} array)") from None
         except (ValueError, EOFError, OSError, zipfile.BadZipFile):

@@ -57,12 +57,8 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.replay import ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
 
-__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "COVERING_CLASS", "LOG",
-           "POLICY", "TrainConfig", "TrainResult", "load_checkpoint", "train"]
-
-COVERING_CLASS = "tank:3"
-"""The gain class ``teleopkit train`` trains under by default: its certificate covers every
-schedule the tuner plays (``examples/train_covered.py`` measures the recipe)."""
+__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "TrainConfig",
+           "TrainResult", "load_checkpoint", "train"]
 
 CHECKPOINT = "checkpoint.pt"
 """File name of the checkpoint in the output directory."""

@@ -1,0 +1,94 @@
+"""``teleopkit search-law``: a gain law (measured levels to gains) searched by CMA-ES."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+from teleopkit.cli.options import (
+    certificate_option,
+    check_output_dir,
+    gain_variation,
+    read_certificate,
+    setup_option,
+)
+
+if TYPE_CHECKING:
+    from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.setup import Setup
+
+__all__ = ["search_law_command"]
+
+
+@click.command("search-law")
+@click.option("--generations", type=click.IntRange(min=1), default=40, show_default=True,
+              help="CMA-ES generations.")
+@click.option("--population", type=click.IntRange(min=2), default=15, show_default=True,
+              help="Laws per generation.")
+@click.option("--scenarios", type=click.IntRange(min=1), default=64, show_default=True,
+              help="Fresh scenarios per generation, shared by the laws and the start gains.")
+@click.option("--harm", type=click.FloatRange(min=0), default=1.0, show_default=True,
+              help="Weight of the mean excess cost over the start gains (0: the mean relative "
+                   "cost alone).")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the scenarios and of CMA-ES.")
+@click.option("--out", type=click.Path(path_type=Path), default="runs/law", show_default=True,
+              help="Directory for best_policy.npz, search_log.csv and config.json.")
+@click.option("--gain-variation", "variation", default=None, callback=gain_variation,
+              help="Gain class of the law, on the closed form's certificate of the default box "
+                   "for the delays the setup's network reaches [default: "
+                   "teleopkit.rl.env.COVERING_CLASS].")
+@certificate_option
+@setup_option
+def search_law_command(generations: int, population: int, scenarios: int, harm: float,
+                       seed: int, out: Path, variation: object, certificate: Path | None,
+                       setup: Setup) -> None:
+    """Search a gain law for the setup: measured levels of motion and errors to remote gains.
+
+    The law reads the adaptive observation's levels (how much the operator moves, how large
+    both errors are), the measured delay and the safety layer's state, through one linear
+    layer, starting from the best constant gains of the class for the setup (searched first,
+    about a minute); CMA-ES then runs every generation's laws and the start gains on the same
+    fresh scenarios of the setup (teleopkit.rl.law_search). Every gain is projected by the
+    safety layer; the result is a policy file that evaluate runs like any tuner.
+    """
+    from teleopkit.rl.env import FlexTeleopConfig
+    from teleopkit.rl.law_search import LawSearchConfig, law_start, search_gain_law
+
+    check_output_dir(out, "--out")
+    chosen = _law_certificate(variation, certificate, setup)
+    config = FlexTeleopConfig(setup, chosen, observation="adaptive")
+    settings = LawSearchConfig(generations=generations, population=population,
+                               scenarios=scenarios, harm=harm, seed=seed)
+    click.echo(f"searching a gain law under {chosen.gain_variation} for the setup "
+               f"(fingerprint {setup.fingerprint})", err=True)
+    start = law_start(config, progress=None)
+    click.echo("start: the best constant gains of the class "
+               f"{[round(float(g), 4) for g in start]}", err=True)
+    result = search_gain_law(start, settings, config, out_dir=out, progress=None)
+    best = result.log.loc[result.log["validation_objective"].idxmin()]
+    click.echo(f"best law at generation {int(best['generation'])}: validation cost "
+               f"{best['validation_cost']:.5g} against {best['start_cost']:.5g} for the start "
+               f"gains ({100 * (best['validation_objective'] - 1):+.1f} % per scenario on "
+               f"average); law in {out / 'best_policy.npz'}")
+
+
+def _law_certificate(variation: object, certificate: Path | None,
+                     setup: Setup) -> GainCertificate:
+    """The certificate asked for (file or class), checked against the setup."""
+    from teleopkit.certification.certifier import default_certificate
+    from teleopkit.rl.env import COVERING_CLASS
+    from teleopkit.safety.factory import layer_for
+
+    if certificate is not None and variation is not None:
+        raise click.BadParameter("give a --certificate or a --gain-variation, not both",
+                                 param_hint="'--gain-variation'")
+    network = setup.network
+    chosen = (read_certificate(certificate) if certificate is not None else
+              default_certificate(setup.params, network.reached_bounds,
+                                  variation or COVERING_CLASS))  # type: ignore[arg-type]
+    chosen.check(setup.params, *network.reached_bounds, network.reached_floors)
+    layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
+    return chosen

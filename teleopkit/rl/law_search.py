@@ -1,0 +1,367 @@
+"""Gain laws searched on the simulator: measured levels to gains, by CMA-ES.
+
+A *gain law* maps what the remote side measures to remote gains through one linear layer::
+
+    gains = low + span * softplus(W x + b),
+
+with ``x`` the standardised *levels* of the adaptive observation
+(:class:`~teleopkit.rl.features.AdaptiveObservation`: ``log10`` of moving averages of the squared
+received operator rate and of both squared errors, per joint), the measured forward delay and
+the safety layer's run-time state (the tank or budget level, when the class keeps one). Levels,
+not signed signals: the physics is symmetric, so a gain that depends on the sign of an error
+is noise. At ``W = 0, b = 0`` the law gives its *start*, the best constant gains of the class
+for the setup: the search begins where the strongest constant comparator stands, and every
+law it finds is a :class:`~teleopkit.rl.policy.GainPolicy` (one layer) that evaluation,
+comparators and campaigns run as any tuner, its every gain projected by the safety layer.
+
+The search is CMA-ES (Hansen, *The CMA evolution strategy: a tutorial*, 2016; the ``cma``
+package) over ``(W, b)``. Each generation runs the population and the start gains on the same
+fresh scenarios drawn from the setup (common random numbers), all in one batch of the simulator,
+and scores each law by its cost relative to the start gains on each scenario, averaged: a
+scenario that costs little weighs as much as one that costs much, so a law that helps the
+cheap conditions cannot hide harm on them behind a costly one, and the other way round. A
+``harm`` weight adds the mean excess over the start gains (``max(0, relative - 1)``): the
+search then pays for every scenario a law makes worse. After every ``validate_every``
+generations the distribution's mean is run on fixed validation scenarios, next to the start
+gains; the best by the same objective there is kept, as the TD3 trainer keeps its best actor.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from teleopkit.files import atomic_write
+from teleopkit.progress import reports_progress
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.evaluation import closed_loop
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.sim.scenarios import Scenario
+
+__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_start", "search_gain_law"]
+
+_LN2 = math.log(2.0)
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LawSearchConfig:
+    """Settings of :func:`search_gain_law`.
+
+    Parameters
+    ----------
+    generations : int
+        CMA-ES generations.
+    population : int
+        Laws per generation.
+    scenarios : int
+        Fresh scenarios per generation, shared by the population and the start gains (the batch
+        simulated is ``(population + 1) * scenarios``).
+    sigma : float
+        Initial step size of CMA-ES in the weights' units (standardised levels).
+    harm : float
+        Weight of the mean excess cost over the start gains in the objective (0: the mean
+        relative cost alone).
+    seed : int
+        Seed of the scenarios, the standardisation and CMA-ES.
+    validate_every : int
+        Generations between validations of the distribution's mean.
+    validation_scenarios : int
+        Fixed validation scenarios (seed ``validation_seed``, as the TD3 trainer's).
+    validation_seed : int
+        Their seed.
+    """
+
+    generations: int = 40
+    population: int = 15
+    scenarios: int = 64
+    sigma: float = 0.15
+    harm: float = 0.0
+    seed: int = 0
+    validate_every: int = 5
+    validation_scenarios: int = 16
+    validation_seed: int = 4_242
+
+    def __post_init__(self) -> None:
+        for name in ("generations", "population", "scenarios", "validate_every",
+                     "validation_scenarios"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.population < 2:
+            raise ValueError(f"population must be at least 2, got {self.population}")
+        if not self.sigma > 0 or not math.isfinite(self.sigma):
+            raise ValueError(f"sigma must be positive, got {self.sigma}")
+        if not self.harm >= 0:
+            raise ValueError(f"harm must be non-negative, got {self.harm}")
+
+
+@dataclass(frozen=True)
+class LawSearchResult:
+    """What :func:`search_gain_law` returns.
+
+    Attributes
+    ----------
+    policy : GainPolicy
+        The best law by validation cost.
+    log : pandas.DataFrame
+        One row per validation: ``generation``, ``objective`` (the generation's best),
+        ``validation_objective`` (the mean law's on the validation scenarios), its
+        ``validation_cost`` and the start gains' ``start_cost`` there (means over the
+        scenarios), ``wall_time`` and ``unsafe_actions`` (cumulative; must stay 0).
+    start : ndarray
+        The start gains (``W = 0``).
+    """
+
+    policy: GainPolicy
+    log: pd.DataFrame
+    start: np.ndarray
+
+
+def law_features(config: FlexTeleopConfig) -> np.ndarray:
+    """Columns of the environment's observation a gain law reads.
+
+    Parameters
+    ----------
+    config : FlexTeleopConfig
+        Environment settings with ``observation="adaptive"``.
+
+    Returns
+    -------
+    ndarray of int
+        The levels (``3 n`` columns), the measured delay and the safety layer's run-time state.
+
+    Raises
+    ------
+    ValueError
+        If the observation is not the adaptive one (the paper's has no levels).
+    """
+    if config.observation != "adaptive":
+        raise ValueError("a gain law reads the adaptive observation's levels; the environment "
+                         f"observes {config.observation!r} (use observation='adaptive')")
+    from teleopkit.rl.env import TeleopBatch
+
+    n = config.params.n_joints
+    return np.arange(8 * n, 11 * n + 1 + TeleopBatch(config, 1).run_time_columns)
+
+
+def law_start(config: FlexTeleopConfig, progress: bool | None = None) -> np.ndarray:
+    """Where a law starts: the best constant gains of the environment's class for its setup.
+
+    Searched by :func:`~teleopkit.rl.baselines.best_static_gains` on the set of the
+    environment's certificate, on scenarios of its setup. A gain on the box's lower edge is
+    lifted by 1 % of its range: the law's map needs room below its start (what the law asks
+    for is projected onto the certified set anyway).
+
+    Parameters
+    ----------
+    config : FlexTeleopConfig
+        Environment (setup and certificate).
+    progress : bool, optional
+        Show the search on standard error (default: on a terminal only).
+
+    Returns
+    -------
+    ndarray, shape (2 n,)
+        The start gains.
+    """
+    from teleopkit.rl.baselines import best_static_gains
+    from teleopkit.safety.factory import layer_for
+
+    certificate = config.safety_certificate()
+    layer = layer_for(certificate, config.control_period)
+    found = best_static_gains(layer, config=config, progress=progress).gains
+    low, high = (np.asarray(corner, dtype=float) for corner in (certificate.box.lower,
+                                                                 certificate.box.upper))
+    return np.maximum(found, low + 0.01 * (high - low))
+
+
+class _Laws:
+    """Several gain laws side by side: law ``p`` drives lanes ``p S .. (p + 1) S - 1``.
+
+    Weights are rounded to single precision, as a policy file stores them: the law run here is
+    the law saved.
+    """
+
+    def __init__(self, thetas: np.ndarray, columns: np.ndarray, low: np.ndarray,
+                 span: np.ndarray, seen: _Seen) -> None:
+        thetas = np.asarray(thetas, dtype=np.float32).astype(np.float64)
+        width = seen.mean.size
+        count, actions = len(thetas), len(low)
+        self.weights = np.zeros((count, actions, width))
+        self.weights[:, :, columns] = thetas[:, :actions * columns.size].reshape(
+            count, actions, columns.size)
+        self.bias = thetas[:, actions * columns.size:]
+        self.low, self.span, self.seen = low, span, seen
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        seen = self.seen
+        x = (np.clip(obs, seen.lowest, seen.highest) - seen.mean) / seen.std
+        x = x.reshape(len(self.weights), -1, obs.shape[1])
+        z = np.einsum("psd,pad->psa", x, self.weights) + self.bias[:, None, :]
+        return (self.low + self.span * np.logaddexp(0.0, z)).reshape(-1, len(self.low))
+
+    def policy(self, metadata: dict[str, Any]) -> GainPolicy:
+        """The first law as a one-layer :class:`GainPolicy`."""
+        seen = self.seen
+        return GainPolicy([(self.weights[0], self.bias[0])], seen.mean, seen.std, self.low,
+                          self.span, metadata, (seen.lowest, seen.highest))
+
+
+def _costs(controller: Any, scenario: Scenario, config: FlexTeleopConfig,
+           count: int) -> tuple[np.ndarray, int]:
+    """Episode costs ``(count, S)`` of ``count`` laws on ``scenario`` repeated, unsafe actions."""
+    run = closed_loop(controller, scenario.repeat(count), config)
+    return -run.reward.sum(axis=0).reshape(count, scenario.batch), run.unsafe_actions
+
+
+def _objective(costs: np.ndarray, start: np.ndarray, harm: float) -> np.ndarray:
+    """Per law: mean cost relative to the start gains', plus ``harm`` times the mean excess."""
+    relative = costs / start
+    return relative.mean(axis=1) + harm * np.maximum(relative - 1.0, 0.0).mean(axis=1)
+
+
+class _Seen(NamedTuple):
+    """Observations seen before the search: their mean, spread and range."""
+
+    mean: np.ndarray
+    std: np.ndarray
+    lowest: np.ndarray
+    highest: np.ndarray
+
+
+def _observed(config: FlexTeleopConfig, start: np.ndarray, low: np.ndarray,
+              settings: LawSearchConfig) -> _Seen:
+    """The observation under constant gains spread around the start.
+
+    Uniform in ``[low, 2 start - low]`` per scenario: the levels and the safety layer's state
+    vary as they will under the laws (under the start alone the tank never moves). A law reads
+    its inputs clipped into the range seen here: it never extrapolates beyond the setup it was
+    searched for (a delay shorter than any the setup draws reads as the shortest one).
+    """
+    rng = np.random.default_rng(settings.seed)
+    scenario = config.setup.scenarios(rng, settings.scenarios)
+    gains = low + rng.uniform(size=(settings.scenarios, len(start))) * 2 * (start - low)
+    run = closed_loop(lambda obs: gains, scenario, config)
+    obs = run.obs.reshape(-1, run.obs.shape[-1])
+    return _Seen(obs.mean(axis=0), np.maximum(obs.std(axis=0), 1e-3), obs.min(axis=0),
+                 obs.max(axis=0))
+
+
+@reports_progress
+def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
+                    config: FlexTeleopConfig | None = None, out_dir: str | Path | None = None,
+                    progress: bool | None = None) -> LawSearchResult:
+    """Search a gain law for the environment's setup by CMA-ES (see the module notes).
+
+    Parameters
+    ----------
+    start : ndarray, shape (2 n,)
+        The law at ``W = 0``: constant gains inside the certified set, strictly above the
+        box's lower corner (the best constant gains of the class, typically
+        :func:`~teleopkit.rl.baselines.best_static_gains`).
+    settings : LawSearchConfig, optional
+        Search settings (defaults if omitted).
+    config : FlexTeleopConfig, optional
+        Environment (setup, certificate, reward) with ``observation="adaptive"``; by default
+        the paper's setup under its default certificate.
+    out_dir : str or Path, optional
+        Where to write ``best_policy.npz``, ``search_log.csv`` and ``config.json`` (nothing
+        written if omitted).
+    progress : bool, optional
+        Show the generations on standard error (default: on a terminal only).
+
+    Returns
+    -------
+    LawSearchResult
+        The best law by validation, the log and the start gains.
+
+    Raises
+    ------
+    ValueError
+        If the observation is not the adaptive one or ``start`` is not above the box's lower
+        corner.
+    RuntimeError
+        If an applied gain left the certified set (never expected).
+    """
+    import cma  # deferred: only the search needs it
+
+    settings = settings if settings is not None else LawSearchConfig()
+    config = config if config is not None else FlexTeleopConfig(observation="adaptive")
+    columns = law_features(config)
+    certificate = config.safety_certificate()
+    low = np.asarray(certificate.box.lower, dtype=float)
+    start = np.asarray(start, dtype=float)
+    if start.shape != low.shape or not np.all(start > low):
+        raise ValueError(f"the law's start {start.tolist()} must lie above the box's lower "
+                         f"corner {low.tolist()}")
+    span = (start - low) / _LN2
+    seen = _observed(config, start, low, settings)
+    size = low.size * columns.size + low.size  # W on the law's columns, then b
+    search = cma.CMAEvolutionStrategy(np.zeros(size), settings.sigma,
+                                      {"popsize": settings.population, "seed": settings.seed + 1,
+                                       "verbose": -9})
+    validation = config.setup.scenarios(np.random.default_rng(settings.validation_seed),
+                                        settings.validation_scenarios)
+
+    def laws(thetas: np.ndarray) -> _Laws:
+        return _Laws(thetas, columns, low, span, seen)
+
+    metadata = {"recipe": "gain law (CMA-ES)", "law_search": asdict(settings),
+                "start": start.tolist(), "gain_variation": certificate.gain_variation,
+                "certificate": certificate.to_dict(), "setup": config.setup.record,
+                "observation": config.observation,
+                "decision_period": config.decision_period}
+    rows: list[dict[str, float]] = []
+    best: tuple[float, GainPolicy] | None = None
+    unsafe, began = 0, time.perf_counter()
+    for generation in range(1, settings.generations + 1):
+        thetas = np.asarray(search.ask())
+        rng = np.random.default_rng([settings.seed, generation])
+        scenario = config.setup.scenarios(rng, settings.scenarios)
+        costs, count = _costs(laws(np.vstack([np.zeros(size), thetas])), scenario, config,
+                              len(thetas) + 1)
+        unsafe += count
+        objective = _objective(costs[1:], costs[0], settings.harm)
+        search.tell(list(thetas), objective.tolist())
+        _log.info("gain law search: generation %d of %d, best objective %.4f", generation,
+                  settings.generations, float(objective.min()))
+        if generation % settings.validate_every and generation != settings.generations:
+            continue
+        current = laws(np.vstack([search.mean, np.zeros(size)]))
+        checked, count = _costs(current, validation, config, 2)
+        unsafe += count
+        score = float(_objective(checked[:1], checked[1], settings.harm)[0])
+        cost = float(checked[0].mean())
+        rows.append({"generation": generation, "objective": float(objective.min()),
+                     "validation_objective": score, "validation_cost": cost,
+                     "start_cost": float(checked[1].mean()),
+                     "wall_time": time.perf_counter() - began, "unsafe_actions": unsafe})
+        if best is None or score < best[0]:
+            best = (score, current.policy({**metadata, "generation": generation,
+                                           "validation_objective": score,
+                                           "validation_cost": cost}))
+        if out_dir is not None:
+            _save(Path(out_dir), best[1], pd.DataFrame(rows), settings)
+    if unsafe:
+        raise RuntimeError(f"{unsafe} applied gains left the certified set")
+    assert best is not None
+    return LawSearchResult(best[1], pd.DataFrame(rows), start)
+
+
+def _save(out_dir: Path, policy: GainPolicy, log: pd.DataFrame,
+          settings: LawSearchConfig) -> None:
+    """The best law, the log and the settings, each written atomically."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write(out_dir / "best_policy.npz", policy.save)
+    atomic_write(out_dir / "search_log.csv", lambda path: log.to_csv(path, index=False))
+    atomic_write(out_dir / "config.json",
+                 lambda path: path.write_text(json.dumps(asdict(settings), indent=2)))

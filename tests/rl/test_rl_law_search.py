@@ -1,0 +1,115 @@
+"""Gain laws searched by CMA-ES: where they start, what they read, what they record."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.rl.baselines import static_cost
+from teleopkit.rl.env import FlexTeleopConfig
+from teleopkit.rl.evaluation import closed_loop
+from teleopkit.rl.law_search import (
+    LawSearchConfig,
+    _Laws,
+    _Seen,
+    law_features,
+    search_gain_law,
+)
+from teleopkit.rl.policy import GainPolicy
+from teleopkit.safety.factory import layer_for
+
+START = np.array([3.4, 7.4, 8.6, 18.5])  # about the paper's best constant gains
+SHORT = FlexTeleopConfig(observation="adaptive", episode_length=4.0)
+TANK = FlexTeleopConfig(certificate=default_certificate(variation="tank:3"),
+                        observation="adaptive", episode_length=4.0)
+SMALL = LawSearchConfig(generations=6, population=6, scenarios=8, validate_every=2,
+                        validation_scenarios=8)
+
+
+@pytest.fixture(scope="module")
+def searched(tmp_path_factory):
+    out = tmp_path_factory.mktemp("law")
+    return search_gain_law(START, SMALL, SHORT, out_dir=out, progress=False), out
+
+
+def test_a_law_reads_the_levels_the_delay_and_the_safety_layer_state():
+    assert law_features(SHORT).tolist() == list(range(16, 23))  # 6 levels, the delay
+    columns = layer_for(TANK.safety_certificate()).run_time_state(1).shape[1]
+    assert columns > 0
+    assert law_features(TANK).tolist() == list(range(16, 23 + columns))  # and the tank
+    with pytest.raises(ValueError, match="adaptive"):
+        law_features(FlexTeleopConfig())
+
+
+def test_a_law_with_zero_weights_is_its_start_and_costs_what_the_start_gains_cost():
+    low = np.ones(4)
+    span = (START - low) / np.log(2.0)
+    seen = _Seen(np.zeros(23), np.ones(23), np.full(23, -np.inf), np.full(23, np.inf))
+    law = _Laws(np.zeros((1, 4 * 7 + 4)), law_features(SHORT), low, span, seen)
+    obs = np.random.default_rng(0).normal(size=(5, 23))
+    np.testing.assert_allclose(law(obs), np.tile(START, (5, 1)), rtol=1e-12)
+    scenario = SHORT.setup.scenarios(np.random.default_rng(3), 4)
+    run = closed_loop(law, scenario, SHORT)
+    np.testing.assert_allclose(-run.reward.sum(axis=0), static_cost(START, scenario, SHORT)[0],
+                               rtol=1e-9)
+
+
+def test_the_search_beats_its_start_on_its_validation_scenarios(searched):
+    result, _ = searched
+    best = result.log["validation_objective"].min()
+    assert best < 0.98 and (result.log["unsafe_actions"] == 0).all()
+    chosen = result.log.loc[result.log["validation_objective"].idxmin()]
+    assert result.policy.metadata["generation"] == chosen["generation"]
+    # the policy file computes what the search validated
+    validation = SHORT.setup.scenarios(np.random.default_rng(SMALL.validation_seed), 8)
+    cost = -closed_loop(result.policy, validation, SHORT).reward.sum(axis=0)
+    assert cost.mean() == pytest.approx(chosen["validation_cost"], rel=1e-9)
+
+
+def test_a_law_file_records_what_it_was_searched_for(searched):
+    result, out = searched
+    loaded = GainPolicy.load(out / "best_policy.npz")
+    assert loaded.fingerprint == result.policy.fingerprint and len(loaded.weights) == 1
+    meta = loaded.metadata
+    assert meta["setup"] == SHORT.setup.record and meta["observation"] == "adaptive"
+    assert meta["law_search"]["population"] == SMALL.population
+    assert meta["start"] == START.tolist() and meta["gain_variation"] == "frozen"
+    pd.testing.assert_frame_equal(pd.read_csv(out / "search_log.csv"), result.log,
+                                  check_dtype=False)
+
+
+def test_a_law_never_extrapolates_beyond_the_observations_it_was_searched_on(searched):
+    law = searched[0].policy
+    lowest, highest = law.obs_range
+    assert np.all(lowest < highest)  # every column moved during the standardisation run
+    inside = np.random.default_rng(1).uniform(lowest, highest, size=(6, lowest.size))
+    beyond = inside.copy()
+    beyond[:, -1] = highest[-1] + 5.0  # a delay far longer than any the setup draws
+    edge = inside.copy()
+    edge[:, -1] = highest[-1]
+    np.testing.assert_array_equal(law(beyond), law(edge))
+    assert not np.allclose(law(inside), law(edge))  # the delay matters inside the range
+
+
+def test_the_same_seed_gives_the_same_law():
+    settings = LawSearchConfig(generations=2, population=3, scenarios=2, validate_every=1,
+                               validation_scenarios=2)
+    config = FlexTeleopConfig(observation="adaptive", episode_length=1.0)
+    first = search_gain_law(START, settings, config, progress=False)
+    again = search_gain_law(START, settings, config, progress=False)
+    assert first.policy.fingerprint == again.policy.fingerprint
+
+
+@pytest.mark.parametrize(("settings", "message"), [
+    ({"population": 1}, "population"), ({"sigma": 0.0}, "sigma"), ({"harm": -1.0}, "harm"),
+    ({"generations": 0}, "generations"), ({"sigma": float("nan")}, "sigma")])
+def test_bad_settings_are_refused(settings, message):
+    with pytest.raises(ValueError, match=message):
+        LawSearchConfig(**settings)
+
+
+def test_a_start_on_the_box_floor_is_refused():
+    with pytest.raises(ValueError, match="above the box's lower corner"):
+        search_gain_law(np.array([1.0, 7.4, 8.6, 18.5]), SMALL, SHORT, progress=False)
