@@ -262,24 +262,31 @@ def certificate_option(function: Any) -> Any:
 
 def read_setup(ctx: click.Context | None, param: click.Parameter | None,
                value: Path | None) -> Setup:
-    """Option callback of ``--setup FILE``: the setup it describes, the paper's by default.
+    """Option callback of ``--setup FILE|NAME``: the setup it describes, the paper's by default.
 
     Parameters
     ----------
     ctx, param
         Click's context and parameter (unused).
     value : Path, optional
-        A setup file (YAML or JSON).
+        A setup file (YAML or JSON), or the name of a shipped setup
+        (:data:`~teleopkit.setup.SHIPPED_SETUPS`; write ``./mixed`` for a file called
+        ``mixed``).
 
     Returns
     -------
     Setup
         The setup; an unreadable or malformed file is one line naming the key path.
     """
-    from teleopkit.setup import Setup, SetupError
+    from teleopkit.setup import SHIPPED_SETUPS, Setup, SetupError, shipped_setup_path
 
     if value is None:
         return Setup.paper()
+    if str(value) in SHIPPED_SETUPS:
+        value = shipped_setup_path(str(value))
+    elif not Path(value).exists() and Path(value).name == str(value) and not Path(value).suffix:
+        raise _bad("--setup", f"{value} is neither a setup file nor a shipped setup "
+                              f"({', '.join(SHIPPED_SETUPS)})")
     try:
         return Setup.from_file(value)
     except SetupError as error:
@@ -302,8 +309,10 @@ def setup_option(function: Any) -> Any:
     return click.option(
         "--setup", "setup", type=click.Path(dir_okay=False, path_type=Path), default=None,
         callback=read_setup,
-        help="Setup file (YAML: plant, network, operator, start; see teleopkit setup) "
-             "[default: the paper's].")(function)
+        metavar="FILE|NAME",
+        help="Setup file (YAML: plant, network, operator, start; see teleopkit setup), or a "
+             "shipped setup: paper, mixed (a training distribution around the paper's) "
+             "[default: paper].")(function)
 
 
 def require_torch() -> None:

@@ -8,8 +8,15 @@
 from teleopkit.setup.network import Channel, Network
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import SetupError
-from teleopkit.setup.setup import PAPER_SETUP_FILE, Setup, paper_setup_path
+from teleopkit.setup.setup import (
+    PAPER_SETUP_FILE,
+    SHIPPED_SETUPS,
+    Setup,
+    paper_setup_path,
+    shipped_setup_path,
+)
 from teleopkit.setup.start import StartMix, StartSpec
 
-__all__ = ["PAPER_SETUP_FILE", "Channel", "MotionSpec", "Network", "OperatorSetup", "Setup",
-           "SetupError", "StartMix", "StartSpec", "paper_setup_path"]
+__all__ = ["PAPER_SETUP_FILE", "SHIPPED_SETUPS", "Channel", "MotionSpec", "Network",
+           "OperatorSetup", "Setup", "SetupError", "StartMix", "StartSpec", "paper_setup_path",
+           "shipped_setup_path"]

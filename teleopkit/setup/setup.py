@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,7 +51,7 @@ if TYPE_CHECKING:
     from teleopkit.delays.profiles import DelayProfile
     from teleopkit.sim.scenarios import Scenario
 
-__all__ = ["PAPER_SETUP_FILE", "Setup", "paper_setup_path"]
+__all__ = ["PAPER_SETUP_FILE", "SHIPPED_SETUPS", "Setup", "paper_setup_path", "shipped_setup_path"]
 
 PAPER_SETUP_FILE = "paper_setup.yaml"
 """Name of the paper's setup file among the package's data (``teleopkit/data``)."""
@@ -416,6 +418,37 @@ class Setup:
                 f"fingerprint {self.fingerprint}"]
 
 
+SHIPPED_SETUPS: Mapping[str, str] = MappingProxyType({"paper": PAPER_SETUP_FILE,
+                                                       "mixed": "mixed_setup.yaml"})
+"""Setup files shipped in ``teleopkit/data``, by the name ``--setup`` takes in place of a file:
+``paper`` the paper's setup, ``mixed`` a training distribution around it (decaying and lasting
+sine operators, random smooth motions, a still operator; the paper's starts, at rest, aligned
+and random ones; the paper's, sinusoidal and constant delays)."""
+
+
 def paper_setup_path() -> Path:
     """Path of the shipped paper setup file."""
-    return Path(str(resources.files("teleopkit") / "data" / PAPER_SETUP_FILE))
+    return shipped_setup_path("paper")
+
+
+def shipped_setup_path(name: str) -> Path:
+    """Path of a shipped setup file.
+
+    Parameters
+    ----------
+    name : str
+        A name of :data:`SHIPPED_SETUPS`.
+
+    Returns
+    -------
+    Path
+        The file.
+
+    Raises
+    ------
+    ValueError
+        If there is no shipped setup of that name (one line listing the names).
+    """
+    if name not in SHIPPED_SETUPS:
+        raise ValueError(f"no shipped setup {name!r} (shipped: {', '.join(SHIPPED_SETUPS)})")
+    return Path(str(resources.files("teleopkit") / "data" / SHIPPED_SETUPS[name]))

@@ -100,3 +100,24 @@ def test_train_records_the_setup_and_the_observation(arm_file, tmp_path):
     assert policy.metadata["observation"] == "adaptive"
     assert policy.metadata["setup"] == Setup.from_file(arm_file).record
     assert policy.metadata["certificate"]["delay_bounds"] == [0.5, 0.55]  # what the net reaches
+
+
+def test_a_shipped_setup_is_taken_by_name(tmp_path, monkeypatch):
+    from teleopkit.setup import SHIPPED_SETUPS, shipped_setup_path
+
+    assert Setup.from_file(shipped_setup_path("paper")) == Setup.paper()
+    mixed = Setup.from_file(shipped_setup_path("mixed"))
+    run = ("simulate", "--duration", "2", "--seed", "3", "--kr", "5", "--br", "30", "--out")
+    named = teleopkit(*run, str(tmp_path / "named.csv"), "--setup", "mixed")
+    filed = teleopkit(*run, str(tmp_path / "filed.csv"), "--setup",
+                      str(shipped_setup_path("mixed")))
+    assert named.returncode == filed.returncode == 0, named.stderr
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "named.csv"),
+                                  pd.read_csv(tmp_path / "filed.csv"))
+    assert mixed.fingerprint != Setup.paper().fingerprint
+    monkeypatch.chdir(tmp_path)
+    unknown = teleopkit("simulate", "--setup", "nosuch")
+    assert unknown.returncode == 2 and unknown.stderr.count("\n") == 1
+    assert f"nor a shipped setup ({', '.join(SHIPPED_SETUPS)})" in unknown.stderr
+    with pytest.raises(ValueError, match="no shipped setup"):
+        shipped_setup_path("nosuch")
