@@ -1,0 +1,58 @@
+"""Time and outcome of the gain-law recipe: ``teleopkit search-law --setup mixed``, per seed.
+
+Run from the repository root (about 15 minutes per seed on 2 cores)::
+
+    python benchmarks/bench_law_search.py [--seeds 0 1 2] [--setup mixed] [--out runs/laws]
+
+Per seed: the wall time of the start (the best constant gains of the class for the setup,
+searched once and reused by the other seeds, as ``teleopkit search-law`` would search them for
+each run) and of the search, the generation kept, and its validation against the start gains
+(16 fixed scenarios of the setup: mean cost, and the cost relative to the start's per scenario,
+averaged). The laws land in ``--out/seed<k>/best_policy.npz``, for
+``benchmarks/bench_conditions.py --policies``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from teleopkit.certification.certifier import default_certificate
+from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
+from teleopkit.rl.law_search import LawSearchConfig, law_start, search_gain_law
+from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--setup", default="mixed", help="a shipped setup name or a file")
+    parser.add_argument("--out", type=Path, default=Path("runs/laws"))
+    args = parser.parse_args()
+    path = shipped_setup_path(args.setup) if args.setup in SHIPPED_SETUPS else Path(args.setup)
+    setup = Setup.from_file(path)
+    certificate = default_certificate(setup.params, setup.network.reached_bounds,
+                                      COVERING_CLASS)
+    config = FlexTeleopConfig(setup, certificate, observation="adaptive")
+    began = time.perf_counter()
+    start = law_start(config, progress=False)
+    start_time = time.perf_counter() - began
+    print(f"start gains {start.round(4).tolist()} in {start_time:.0f} s")
+    print("\n| seed | start [s] | search [s] | total [s] | generation kept | validation cost "
+          "| start's cost | relative per scenario |")
+    print("|---|---|---|---|---|---|---|---|")
+    for seed in args.seeds:
+        began = time.perf_counter()
+        result = search_gain_law(start, LawSearchConfig(seed=seed, harm=1.0), config,
+                                 out_dir=args.out / f"seed{seed}", progress=False)
+        search_time = time.perf_counter() - began
+        kept = result.log.loc[result.log["validation_objective"].idxmin()]
+        print(f"| {seed} | {start_time:.0f} | {search_time:.0f} | {start_time + search_time:.0f} "
+              f"| {int(kept['generation'])} | {kept['validation_cost']:.0f} | "
+              f"{kept['start_cost']:.0f} | {100 * (kept['validation_objective'] - 1):+.1f} % |",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
