@@ -202,9 +202,10 @@ class _PolicyFile(click.Path):
 @click.command("evaluate")
 @click.option("--policy", "policy_files", required=True, multiple=True, type=_PolicyFile(),
               metavar="FILE|NAME",
-              help="Policy file (policy.npz), or a shipped policy: covered (the tuner trained "
-                   "under tank:3, whose certificate covers every schedule it plays) or paper "
-                   "(the paper's tuner, trained under the frozen class); repeat for several "
+              help="Policy file (policy.npz), or a shipped policy: covered (the TD3 tuner "
+                   "trained under tank:3, whose certificate covers every schedule it plays), law "
+                   "(the gain law searched for the mixed setup under tank:3) or paper (the "
+                   "paper's tuner, trained under the frozen class); repeat for several "
                    "training seeds of one recipe.")
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios.")

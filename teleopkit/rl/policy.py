@@ -20,7 +20,8 @@ import numpy as np
 if TYPE_CHECKING:
     from teleopkit.rl.networks import Actor
 
-__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "SHIPPED_POLICIES", "GainPolicy", "resolve_policy"]
+__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "PRETRAINED_LAW", "SHIPPED_POLICIES", "GainPolicy",
+           "resolve_policy"]
 
 PRETRAINED = "td3_policy.npz"
 """File name of the paper's tuner in ``teleopkit/data``: trained under the closed form's
@@ -32,11 +33,18 @@ PRETRAINED_COVERED = "td3_covered_policy.npz"
 the safety layer lets through (its metadata holds the certificate;
 ``examples/train_covered.py``)."""
 
+PRETRAINED_LAW = "law_policy.npz"
+"""File name of the shipped gain law: the adaptive observation's levels, the delay and the tank
+level to gains, searched by ``teleopkit search-law --setup mixed`` under ``tank:3``
+(:mod:`teleopkit.rl.law_search`; its metadata holds the search settings and the setup)."""
+
 SHIPPED_POLICIES: Mapping[str, str] = MappingProxyType({"covered": PRETRAINED_COVERED,
+                                                         "law": PRETRAINED_LAW,
                                                          "paper": PRETRAINED})
-"""Names of the shipped policies, with their files in ``teleopkit/data``: ``covered`` the tuner
-trained under the ``tank:3`` class, whose certificate covers every schedule it plays
-(:data:`PRETRAINED_COVERED`); ``paper`` the paper's tuner (:data:`PRETRAINED`)."""
+"""Names of the shipped policies, with their files in ``teleopkit/data``: ``covered`` the TD3
+tuner trained under the ``tank:3`` class, whose certificate covers every schedule it plays
+(:data:`PRETRAINED_COVERED`); ``law`` the gain law searched for the mixed training distribution
+under the same class (:data:`PRETRAINED_LAW`); ``paper`` the paper's tuner (:data:`PRETRAINED`)."""
 
 _DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -43,7 +43,7 @@ def test_a_name_reaches_the_policy_it_names(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("value", "message"), [
-    ("coverd", "coverd is neither a policy file nor a shipped policy (covered, paper)"),
+    ("coverd", "coverd is neither a policy file nor a shipped policy (covered, law, paper)"),
     ("{tmp}/missing.npz", "File '{tmp}/missing.npz' does not exist."),
     ("{tmp}", "File '{tmp}' is a directory."),
 ])

@@ -8,6 +8,7 @@ import pytest
 from teleopkit.rl.policy import (
     PRETRAINED,
     PRETRAINED_COVERED,
+    PRETRAINED_LAW,
     SHIPPED_POLICIES,
     GainPolicy,
     resolve_policy,
@@ -19,7 +20,8 @@ def same(a: GainPolicy, b: GainPolicy) -> bool:
 
 
 def test_every_shipped_name_is_a_shipped_file():
-    assert dict(SHIPPED_POLICIES) == {"covered": PRETRAINED_COVERED, "paper": PRETRAINED}
+    assert dict(SHIPPED_POLICIES) == {"covered": PRETRAINED_COVERED, "law": PRETRAINED_LAW,
+                                      "paper": PRETRAINED}
     for name, file in SHIPPED_POLICIES.items():
         path = resolve_policy(name)
         assert path.name == file and path.is_file()
@@ -30,6 +32,17 @@ def test_every_shipped_name_is_a_shipped_file():
 def test_the_names_load_the_right_tuners():
     assert GainPolicy.load("covered").metadata["certificate"]["gain_variation"] == "tank:3"
     assert same(GainPolicy.load("paper"), GainPolicy.pretrained())
+
+
+def test_the_shipped_law_records_what_it_was_searched_for():
+    from teleopkit.setup import Setup, shipped_setup_path
+
+    law = GainPolicy.load("law")
+    meta = law.metadata
+    assert len(law.weights) == 1 and law.obs_range is not None
+    assert meta["observation"] == "adaptive" and meta["gain_variation"] == "tank:3"
+    assert meta["setup"] == Setup.from_file(shipped_setup_path("mixed")).record
+    assert meta["law_search"]["harm"] == 1.0 and meta["recipe"] == "gain law (CMA-ES)"
 
 
 def test_a_path_still_loads(tmp_path):
@@ -49,7 +62,7 @@ def test_a_name_beats_a_file_of_that_name(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("source", ["coverd", "/no/such/policy.npz"])
 def test_neither_a_name_nor_a_file_is_one_line_listing_the_names(source):
-    message = f"{source} is neither a policy file nor a shipped policy (covered, paper)"
+    message = f"{source} is neither a policy file nor a shipped policy (covered, law, paper)"
     with pytest.raises(ValueError) as error:
         GainPolicy.load(source)
     assert str(error.value) == message
