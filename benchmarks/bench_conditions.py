@@ -36,6 +36,7 @@ from teleopkit.rl.comparison import (
     compare,
     evaluation_config,
     policy_certificate,
+    tuner_label,
 )
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import MotionSpec, Network, Setup, StartSpec
@@ -154,11 +155,11 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     certificate = default_certificate(setup.params, setup.network.reached_bounds, variation)
     config = evaluation_config(certificate, setup)
     found = comparators_for(first, certificate, config)
-    label = f"TD3 ({variation})"
     for tuner_name, policy in tuners.items():
         comparators = found if policy is first else found.for_policy(policy, config)
         table = compare([policy], scenarios, certificate=certificate, setup=setup,
                         comparators=comparators, progress=False)
+        label = tuner_label(policy, variation)
         table = table.assign(family=name, tuner=tuner_name)
         frames.append(table)
         mean = table.groupby("controller")[["cost", "cost_opening", "cost_rest"]].mean()

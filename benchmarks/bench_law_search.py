@@ -8,8 +8,8 @@ Per seed: the wall time of the start (the best constant gains of the class for t
 searched once and reused by the other seeds, as ``teleopkit search-law`` would search them for
 each run) and of the search, the generation kept, and its validation against the start gains
 (16 fixed scenarios of the setup: mean cost, and the search's objective there: the cost relative
-to the start's per scenario, averaged, plus the mean excess where it is dearer). The laws land in ``--out/seed<k>/best_policy.npz``, for
-``benchmarks/bench_conditions.py --policies``.
+to the start's per scenario, averaged, plus the mean excess where it is dearer). The laws land
+in ``--out/seed<k>/best_policy.npz``, for ``benchmarks/bench_conditions.py --policies``.
 """
 
 from __future__ import annotations

@@ -244,6 +244,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         evaluation_config,
         policy_certificate,
         report_preamble,
+        tuner_label,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
     from teleopkit.rl.policy import GainPolicy
@@ -274,7 +275,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     comparators = comparators_for(policies[0], chosen, config, on_search=searching)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
                            setup=setup)
-    tuner = f"TD3 ({chosen.gain_variation})"
+    tuner = tuner_label(policies[0], chosen.gain_variation)
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles
                                               + config.setup.network.backward.profiles))
     preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(policies),

@@ -50,7 +50,7 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "comparators_for", "evaluation_config",
-           "frozen_counterpart", "policy_observation", "tuner_controller"]
+           "frozen_counterpart", "policy_observation", "tuner_controller", "tuner_label"]
 
 _log = logging.getLogger(__name__)
 
@@ -96,6 +96,26 @@ def policy_observation(policy: GainPolicy) -> str:
         The observation kind of :class:`~teleopkit.rl.env.FlexTeleopConfig`.
     """
     return str(policy.metadata.get("observation", "paper"))
+
+
+def tuner_label(policy: GainPolicy, variation: str) -> str:
+    """The row name of a tuner in a comparison: what it is and its gain class.
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        The tuner (its metadata says how it was made).
+    variation : str
+        The gain class it runs under.
+
+    Returns
+    -------
+    str
+        ``"gain law (CLASS)"`` for a law searched by :mod:`teleopkit.rl.law_search`, else
+        ``"TD3 (CLASS)"``.
+    """
+    kind = "gain law" if "law_search" in policy.metadata else "TD3"
+    return f"{kind} ({variation})"
 
 
 def tuner_controller(policy: GainPolicy) -> Controller:

@@ -30,6 +30,7 @@ from teleopkit.rl.comparators import (
     frozen_counterpart,
     policy_observation,
     tuner_controller,
+    tuner_label,
 )
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate
@@ -39,7 +40,7 @@ from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
-           "report_preamble", "tuner_controller"]
+           "report_preamble", "tuner_controller", "tuner_label"]
 
 _log = logging.getLogger(__name__)
 
@@ -156,8 +157,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     config = evaluation_config(certificate, setup, delay, duration)
     found = comparators or comparators_for(policies[0], certificate, config)
     tuner = replace(config, observation=policy_observation(policies[0]))
-    rows = {f"TD3 ({certificate.gain_variation})": ([tuner_controller(p) for p in policies],
-                                                     tuner),
+    rows = {tuner_label(policies[0], certificate.gain_variation): (
+                [tuner_controller(p) for p in policies], tuner),
             **found.controllers(config), **(others or {})}
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pandas as pd
 import pytest
 
 from teleopkit.cli import main
@@ -31,3 +32,5 @@ def test_a_searched_law_is_a_policy_evaluate_runs(tmp_path, capsys):
     assert "start: the best constant gains" in said.err and "best law at generation" in said.out
     assert main(["evaluate", "--policy", str(out / "best_policy.npz"), "--scenarios", "2",
                  "--duration", "2", "--out", str(tmp_path / "eval")]) == 0
+    summary = pd.read_csv(tmp_path / "eval" / "summary.csv", index_col=0)
+    assert summary.index[0] == "gain law (frozen)"  # named for what it is, not TD3
