@@ -44,7 +44,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for seed in args.seeds:
         began = time.perf_counter()
-        result = search_gain_law(start, LawSearchConfig(seed=seed, harm=1.0), config,
+        result = search_gain_law(start, LawSearchConfig(seed=seed), config,
                                  out_dir=args.out / f"seed{seed}", progress=False)
         search_time = time.perf_counter() - began
         kept = result.log.loc[result.log["validation_objective"].idxmin()]

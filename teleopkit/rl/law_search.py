@@ -20,8 +20,8 @@ fresh scenarios drawn from the setup (common random numbers), all in one batch o
 and scores each law by its cost relative to the start gains on each scenario, averaged: a
 scenario that costs little weighs as much as one that costs much, so a law that helps the
 cheap conditions cannot hide harm on them behind a costly one, and the other way round. A
-``harm`` weight adds the mean excess over the start gains (``max(0, relative - 1)``): the
-search then pays for every scenario a law makes worse. After every ``validate_every``
+``harm`` weight adds the mean excess over the start gains (``max(0, relative - 1)``, 1 by
+default): the search then pays for every scenario a law makes worse. After every ``validate_every``
 generations the distribution's mean is run on fixed validation scenarios, next to the start
 gains; the best by the same objective there is kept, as the TD3 trainer keeps its best actor.
 """
@@ -70,7 +70,7 @@ class LawSearchConfig:
         Initial step size of CMA-ES in the weights' units (standardised levels).
     harm : float
         Weight of the mean excess cost over the start gains in the objective (0: the mean
-        relative cost alone).
+        relative cost alone; 1, the shipped law's recipe, by default).
     seed : int
         Seed of the scenarios, the standardisation and CMA-ES.
     validate_every : int
@@ -85,7 +85,7 @@ class LawSearchConfig:
     population: int = 15
     scenarios: int = 64
     sigma: float = 0.15
-    harm: float = 0.0
+    harm: float = 1.0
     seed: int = 0
     validate_every: int = 5
     validation_scenarios: int = 16
