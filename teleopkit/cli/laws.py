@@ -71,8 +71,9 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
     best = result.log.loc[result.log["validation_objective"].idxmin()]
     click.echo(f"best law at generation {int(best['generation'])}: validation cost "
                f"{best['validation_cost']:.5g} against {best['start_cost']:.5g} for the start "
-               f"gains ({100 * (best['validation_objective'] - 1):+.1f} % per scenario on "
-               f"average); law in {out / 'best_policy.npz'}")
+               f"gains (objective {100 * (best['validation_objective'] - 1):+.1f} %: the cost "
+               "relative to theirs per scenario, plus the excess where dearer); law in "
+               f"{out / 'best_policy.npz'}")
 
 
 def _law_certificate(variation: object, certificate: Path | None,
