@@ -1,7 +1,8 @@
 """The ``teleopkit`` command line.
 
 Exit codes: 0 success (or certified), 1 ran but the answer is negative (not certified, unsafe
-actions, a falsification finding), 2 bad input with a one-line message on standard error and no
+actions, a falsification finding) or the model failed (a run left the state bound: one line),
+2 bad input with a one-line message on standard error and no
 traceback, 130 interrupted (Ctrl-C), with one line. Each subcommand imports what it needs when it
 runs, so ``teleopkit --help`` starts at once; :mod:`~teleopkit.cli.options` holds what they share.
 """
@@ -56,11 +57,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         click.echo(f"teleopkit: error: {error.format_message()}", err=True)
         return 2
     except (ValueError, OSError, ImportError, RunLocked) as error:
-        message = str(error).splitlines()[0] if str(error) else type(error).__name__
-        click.echo(f"teleopkit: error: {message}", err=True)
-        return 2
+        return _one_line(error, 2)
     except (click.exceptions.Abort, KeyboardInterrupt):
         click.echo("teleopkit: interrupted (finished rounds, chunks and proven sets are kept)",
                    err=True)
         return 130
+    except RuntimeError as error:  # after Abort (one too): the model failed, never expected
+        return _one_line(error, 1)
     return int(result) if isinstance(result, int) else 0
+
+
+def _one_line(error: Exception, code: int) -> int:
+    """Say ``error`` in one line on standard error; return the exit code."""
+    message = str(error).splitlines()[0] if str(error) else type(error).__name__
+    click.echo(f"teleopkit: error: {message}", err=True)
+    return code

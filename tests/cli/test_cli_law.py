@@ -34,3 +34,17 @@ def test_a_searched_law_is_a_policy_evaluate_runs(tmp_path, capsys):
                  "--duration", "2", "--out", str(tmp_path / "eval")]) == 0
     summary = pd.read_csv(tmp_path / "eval" / "summary.csv", index_col=0)
     assert summary.index[0] == "gain law (frozen)"  # named for what it is, not TD3
+
+
+def test_a_model_failure_is_one_line_and_exit_1(monkeypatch, capsys, tmp_path):
+    import teleopkit.rl.law_search as law_search
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("a certified controller left the state bound (a model failure)")
+
+    monkeypatch.setattr(law_search, "law_start", failing)
+    assert main(["search-law", "--out", str(tmp_path / "law")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == ("teleopkit: error: a certified controller left the state bound (a model "
+                       "failure)")
+    assert not any("Traceback" in line for line in err)
