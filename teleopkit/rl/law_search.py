@@ -92,8 +92,7 @@ class LawSearchConfig:
     validation_seed: int = 4_242
 
     def __post_init__(self) -> None:
-        for name in ("generations", "population", "scenarios", "validate_every",
-                     "validation_scenarios"):
+        for name in ("generations", "scenarios", "validate_every", "validation_scenarios"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         if self.population < 2:
@@ -147,10 +146,11 @@ def law_features(config: FlexTeleopConfig) -> np.ndarray:
     if config.observation != "adaptive":
         raise ValueError("a gain law reads the adaptive observation's levels; the environment "
                          f"observes {config.observation!r} (use observation='adaptive')")
-    from teleopkit.rl.env import TeleopBatch
+    from teleopkit.safety.factory import layer_for
 
     n = config.params.n_joints
-    return np.arange(8 * n, 11 * n + 1 + TeleopBatch(config, 1).run_time_columns)
+    layer = layer_for(config.safety_certificate(), config.control_period)
+    return np.arange(8 * n, 11 * n + 1 + layer.run_time_state(1).shape[1])
 
 
 def law_start(config: FlexTeleopConfig, progress: bool | None = None) -> np.ndarray:
