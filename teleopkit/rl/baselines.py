@@ -33,6 +33,7 @@ from teleopkit.safety.layer import SafetyLayer
 from teleopkit.setup import Setup
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
+from teleopkit.sim.state import StateLayout
 
 __all__ = [
     "BASELINE_SEED",
@@ -111,7 +112,7 @@ def _costs(gains: np.ndarray, scenario: Scenario, config: FlexTeleopConfig) -> n
     run = sim.run(config.max_steps * config.control_period, np.repeat(gains, batch, axis=0))
     reward = config.weights.reward(run.e_track[1:], run.e_damp[1:], run.gains[1:])
     cost = -reward.sum(axis=0)
-    failed = ~np.all(np.abs(run.state) <= config.state_bound, axis=(0, 2))
+    failed = StateLayout.of(run.state).escaped(run.state, config.state_bound)
     return np.where(failed, np.inf, cost).reshape(count, batch)
 
 

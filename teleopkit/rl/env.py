@@ -95,7 +95,9 @@ class FlexTeleopConfig:
     weights : RewardWeights
         Reward weights.
     state_bound : float
-        Largest admissible absolute value of any state entry before termination.
+        Largest admissible absolute value of a position, velocity or integrated error before
+        termination (the energy integrals a storage function needs grow on every run and are
+        only checked to be finite: :attr:`~teleopkit.sim.state.StateLayout.bounded`).
     decision_period : int
         Control periods per agent decision: the agent's gains are held (and projected every
         period) over that many periods, and its reward is their sum. A tuner trained with
@@ -323,8 +325,9 @@ class TeleopBatch:
 def _spaces(config: FlexTeleopConfig, core: TeleopBatch) -> tuple[spaces.Box, spaces.Box]:
     """Action space (the certificate's gain box) and observation space of one scenario.
 
-    Every observation entry is a state entry or the difference of two, and the episode ends
-    once a state entry exceeds ``state_bound``, so observations lie within twice that bound; a
+    Every observation entry is a bounded state entry (motion, integrated errors) or the
+    difference of two, and the episode ends once one exceeds ``state_bound``, so observations
+    lie within twice that bound; a
     scheduled class appends its budget or tank level.
     """
     box = core.certificate.box

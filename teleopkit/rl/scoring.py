@@ -28,6 +28,7 @@ OBSERVATION = ("theta", "dtheta", "ql_delayed", "e_track", "int_e_track", "e_dam
 """Blocks of an observation (``n`` values each), in order."""
 
 _E_TRACK, _E_DAMP = OBSERVATION.index("e_track"), OBSERVATION.index("e_damp")
+_BOUNDED = StateLayout(1).bounded  # state entries per joint that the failure check bounds
 
 
 @njit(**_OPTIONS)
@@ -75,13 +76,15 @@ def _reward(track: np.ndarray, track_start: int, damp: np.ndarray, damp_start: i
 
 
 @njit(**_OPTIONS)
-def _outside(state: np.ndarray, bound: float, failed: np.ndarray) -> int:
-    """Mark the states with an entry that is not finite or beyond ``bound``; count them."""
+def _outside(state: np.ndarray, bounded: int, bound: float, failed: np.ndarray) -> int:
+    """Mark the states with an entry that is not finite, or among the first ``bounded`` and
+    beyond ``bound`` (:attr:`~teleopkit.sim.state.StateLayout.bounded`); count them."""
     count = 0
     for b in range(state.shape[0]):
         failed[b] = False
         for j in range(state.shape[1]):
-            if not abs(state[b, j]) <= bound:
+            value = state[b, j]
+            if not math.isfinite(value) or (j < bounded and not abs(value) <= bound):
                 failed[b] = True
                 count += 1
                 break
@@ -96,7 +99,7 @@ def _score(state: np.ndarray, delayed_ql: np.ndarray, action: np.ndarray, blocks
     n = delayed_ql.shape[1]
     _observe(state, delayed_ql, blocks, obs)
     _reward(obs, _E_TRACK * n, obs, _E_DAMP * n, n, action, alpha, beta, gamma, reward)
-    return _outside(state, bound, failed)
+    return _outside(state, _BOUNDED * n, bound, failed)
 
 
 @cache
@@ -243,7 +246,8 @@ def score(state: np.ndarray, delayed_ql: np.ndarray, action: np.ndarray,
     weights : RewardWeights
         Reward weights.
     bound : float
-        Largest admissible absolute value of a state entry.
+        Largest admissible absolute value of the motion and integrated errors
+        (:attr:`~teleopkit.sim.state.StateLayout.bounded`); every entry must be finite.
 
     Returns
     -------

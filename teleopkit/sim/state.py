@@ -125,6 +125,37 @@ class StateLayout:
         return np.asarray(state)[..., self.slice(name)]
 
     @property
+    def bounded(self) -> int:
+        """How many leading entries a divergence check bounds: motion and integrated errors.
+
+        The last four blocks (the velocity energies and their integrals) are bookkeeping for a
+        storage function and grow on every run: ``iint v^2`` grows linearly in time once
+        ``int v^2`` has settled (about 30 rad^2 s^-1 after a start far from rest gives 1000
+        within 35 s), so a bound on them would end stable runs. They are checked for finiteness.
+        """
+        return 8 * self.n_joints
+
+    def escaped(self, state: np.ndarray, bound: float) -> np.ndarray:
+        """Which runs left the bound: an entry not finite, or a bounded entry beyond ``bound``.
+
+        Parameters
+        ----------
+        state : ndarray, shape (..., B, 12 n)
+            States (any leading axes, for example time).
+        bound : float
+            Largest admissible absolute value of the entries of :attr:`bounded`.
+
+        Returns
+        -------
+        ndarray of bool, shape (B,)
+            True for the runs that left it at some point.
+        """
+        state = np.asarray(state)
+        beyond = ~(np.abs(state[..., :self.bounded]) <= bound)
+        bad = np.any(beyond, axis=-1) | ~np.all(np.isfinite(state), axis=-1)
+        return bad.reshape(-1, bad.shape[-1]).any(axis=0)
+
+    @property
     def positions(self) -> np.ndarray:
         """Indices of every joint angle: local, remote link and motor positions (``3 n``)."""
         return np.r_[self.slice("ql"), self.slice("qr"), self.slice("theta")]

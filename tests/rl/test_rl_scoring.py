@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from teleopkit.rl.scoring import OBSERVATION, RewardWeights, observation, score
-from teleopkit.sim.state import StateLayout
+from teleopkit.sim.state import FIELDS, StateLayout
 
 WEIGHTS = RewardWeights(alpha=3.0, beta=700.0, gamma=2e-3)
 
@@ -66,6 +66,24 @@ def test_score_is_observation_reward_and_the_bound():
     np.testing.assert_array_equal(reward, WEIGHTS.reward(e_track, e_damp, action))
     np.testing.assert_array_equal(failed, [False, True, True, True, False, False])
     assert failures == 3
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_the_bound_covers_motion_and_integrated_errors_not_the_energy_integrals(n):
+    # the double integral of a squared velocity grows linearly in time on a stable run: a
+    # bound on it would end runs that never diverged (found from starts of +-0.6 rad)
+    layout, bound = StateLayout(n), 10.0
+    state = np.zeros((len(FIELDS) + 1, layout.size))
+    for row, name in enumerate(FIELDS):
+        state[row, layout.slice(name)] = 3 * bound
+    state[-1, layout.slice("iint_dtheta2")] = np.nan  # not finite: a failure wherever it is
+    bounded = {"ql", "dql", "qr", "dqr", "theta", "dtheta", "int_track", "int_damp"}
+    expected = [name in bounded for name in FIELDS] + [True]
+    failed = score(state, np.zeros((len(state), n)), np.ones((len(state), 2 * n)), WEIGHTS,
+                   bound).failed
+    np.testing.assert_array_equal(failed, expected)
+    over_time = np.stack([np.zeros_like(state), state])  # (time, runs, entries)
+    np.testing.assert_array_equal(layout.escaped(over_time, bound), expected)
 
 
 def test_score_reads_a_strided_view_of_the_delayed_signals():
