@@ -11,8 +11,12 @@ from gymnasium.utils.env_checker import check_env
 
 import teleopkit
 from teleopkit.certification.certifier import default_certificate
-from teleopkit.rl.env import ENV_ID, FlexTeleopEnv, FlexTeleopVectorEnv, RewardWeights
+from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.env import (ENV_ID, FlexTeleopConfig, FlexTeleopEnv, FlexTeleopVectorEnv,
+                            RewardWeights)
+from teleopkit.rl import evaluation
 from teleopkit.safety import Fallback
+from teleopkit.sim.state import StateLayout
 
 N = 2  # joints
 SHORT = 0.2  # seconds: 20 control periods
@@ -122,6 +126,17 @@ def test_leaving_the_state_bound_terminates_with_the_penalty():
     obs, reward, terminated, truncated, _ = env.step(np.array([10.0, 10.0, 30.0, 30.0]))
     assert terminated and not truncated and reward == -123.0
     assert env.observation_space.contains(obs)
+
+
+def test_energy_integrals_beyond_the_bound_do_not_end_a_stable_run():
+    # under the paper's setup and moderate gains the motion stays within 12 (rad, rad/s) for
+    # 20 s while the double integral of the squared local velocity passes 20: it is bookkeeping
+    config = FlexTeleopConfig(episode_length=20.0, state_bound=15.0)
+    run = evaluation.rollout(ConstantGains(np.array([10.0, 10.0, 30.0, 30.0])), 2, 0, config)
+    layout = StateLayout(2)
+    state = run.trajectory.state
+    assert np.abs(state[..., :layout.bounded]).max() <= 15.0
+    assert np.abs(layout.get(state, "iint_dql2")).max() > 15.0
 
 
 def test_rate_bounded_certificate_limits_each_change():
