@@ -1,4 +1,13 @@
-"""Replay storage of the TD3 learner: preallocated numpy arrays with seeded sampling."""
+"""Replay storage of the TD3 learner: preallocated numpy arrays with seeded sampling, and the
+window that turns one-step transitions into ``n``-step ones.
+
+An ``n``-step transition ``(s_t, a_t, R, s_{t+k}, k)`` carries the discounted reward sum
+``R = sum_{i<k} discount^i r_{t+i}`` over ``k = n`` steps, or fewer where the episode ended
+first; the critic's target bootstraps with ``discount^k`` (Sutton & Barto 2018, section 7.1;
+Hessel et al. 2018 for its use with replay). Credit then travels ``n`` steps per update instead
+of one: an episode here is 4000 control periods, and at discount 0.99 a one-step target needs
+hundreds of updates to carry the opening transient's cost back to the gains that caused it.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
-__all__ = ["Batch", "ReplayBuffer"]
+__all__ = ["Batch", "NStepWindow", "ReplayBuffer"]
 
 
 class Batch(NamedTuple):
@@ -25,6 +34,9 @@ class Batch(NamedTuple):
         Observations after the step.
     terminated : torch.Tensor, shape (B,)
         1 where the episode ended by failure (no bootstrapping), else 0.
+    steps : torch.Tensor, shape (B,)
+        Steps ``k`` the transition spans (1 for a one-step transition): ``reward`` is their
+        discounted sum and ``next_obs`` the observation after them.
     """
 
     obs: torch.Tensor
@@ -32,6 +44,7 @@ class Batch(NamedTuple):
     reward: torch.Tensor
     next_obs: torch.Tensor
     terminated: torch.Tensor
+    steps: torch.Tensor
 
 
 class ReplayBuffer:
@@ -47,7 +60,7 @@ class ReplayBuffer:
         Seed of the sampling generator.
     """
 
-    _FIELDS = ("obs", "action", "reward", "next_obs", "terminated")
+    _FIELDS = ("obs", "action", "reward", "next_obs", "terminated", "steps")
 
     def __init__(self, capacity: int, obs_dim: int, act_dim: int,
                  seed: int | np.random.Generator = 0) -> None:
@@ -59,6 +72,7 @@ class ReplayBuffer:
         self.reward = np.zeros(capacity, dtype=np.float32)
         self.next_obs = np.zeros((capacity, obs_dim), dtype=np.float32)
         self.terminated = np.zeros(capacity, dtype=np.float32)
+        self.steps = np.ones(capacity, dtype=np.float32)
         self.size = 0
         self.position = 0
         self.rng = np.random.default_rng(seed)
@@ -67,7 +81,7 @@ class ReplayBuffer:
         return self.size
 
     def add(self, obs: np.ndarray, action: np.ndarray, reward: np.ndarray,
-            next_obs: np.ndarray, terminated: np.ndarray) -> None:
+            next_obs: np.ndarray, terminated: np.ndarray, steps: np.ndarray | int = 1) -> None:
         """Append a batch of ``B`` transitions (overwriting the oldest when full).
 
         Parameters
@@ -82,10 +96,12 @@ class ReplayBuffer:
             Observations after the step.
         terminated : ndarray, shape (B,)
             Whether each episode ended by failure.
+        steps : ndarray, shape (B,), or int
+            Steps each transition spans (:class:`NStepWindow`; 1 for one-step transitions).
         """
         count = len(reward)
         rows = (self.position + np.arange(count)) % self.capacity
-        for name, value in zip(self._FIELDS, (obs, action, reward, next_obs, terminated),
+        for name, value in zip(self._FIELDS, (obs, action, reward, next_obs, terminated, steps),
                                strict=True):
             getattr(self, name)[rows] = value
         self.position = int((self.position + count) % self.capacity)
@@ -129,6 +145,62 @@ class ReplayBuffer:
         if size > self.capacity:
             raise ValueError(f"checkpoint holds {size} transitions, capacity is {self.capacity}")
         for name in self._FIELDS:
-            getattr(self, name)[:size] = state[name].numpy()
+            if name in state:  # a checkpoint from before n-step transitions holds no steps
+                getattr(self, name)[:size] = state[name].numpy()
         self.size, self.position = size, int(state["position"])
         self.rng.bit_generator.state = state["rng"]
+
+
+class NStepWindow:
+    """The last ``n`` vector steps of parallel episodes, released as ``n``-step transitions.
+
+    Every episode of the batch starts and ends at the same vector step (the environment's
+    episodes have one length and a round ends at the first termination), so one window serves
+    them all. :meth:`push` takes a vector step and returns the transitions that are complete:
+    after ``n`` steps the oldest, each spanning ``n`` steps; at the episode's end all those
+    held, each spanning the steps left (a failure ends them without bootstrapping).
+
+    Parameters
+    ----------
+    n : int
+        Steps per transition (1: the one-step transitions themselves).
+    discount : float
+        Discount of the rewards within a transition.
+    """
+
+    def __init__(self, n: int, discount: float) -> None:
+        if n < 1:
+            raise ValueError(f"n-step transitions need n >= 1, got {n}")
+        self.n, self.discount = n, discount
+        self._held: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def push(self, obs: np.ndarray, action: np.ndarray, reward: np.ndarray,
+             next_obs: np.ndarray, terminated: np.ndarray,
+             ended: bool) -> list[tuple[np.ndarray, ...]]:
+        """Take one vector step; return the complete transitions.
+
+        Parameters
+        ----------
+        obs, action, reward, next_obs, terminated : ndarray
+            The step's one-step transitions, as :meth:`ReplayBuffer.add` takes them.
+        ended : bool
+            Whether the episodes end with this step (termination or truncation).
+
+        Returns
+        -------
+        list of tuple
+            ``(obs, action, reward, next_obs, terminated, steps)`` per released batch, ready
+            for :meth:`ReplayBuffer.add` (oldest first).
+        """
+        self._held.append((obs, action, np.zeros(len(reward))))
+        for k, (_, _, total) in enumerate(self._held):
+            total += self.discount ** (len(self._held) - 1 - k) * reward
+        if ended:
+            released, self._held = self._held, []
+        elif len(self._held) == self.n:
+            released, self._held = self._held[:1], self._held[1:]
+        else:
+            return []
+        span = len(released) + len(self._held)
+        return [(o, a, total, next_obs, terminated, np.full(len(total), span - k, np.float32))
+                for k, (o, a, total) in enumerate(released)]

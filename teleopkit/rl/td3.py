@@ -355,7 +355,11 @@ class TD3:
                 "actor_loss": actor_loss}
 
     def _critic_target(self, batch: Batch) -> torch.Tensor:
-        """``r + discount (1 - terminated) min_i Q'_i(s', P(pi'(s') + clipped noise))``."""
+        """``R + discount^k (1 - terminated) min_i Q'_i(s', P(pi'(s') + clipped noise))``.
+
+        ``R`` is the transition's discounted reward sum over its ``k`` steps (``batch.steps``;
+        ``R = r`` and ``k = 1`` for a one-step transition).
+        """
         cfg = self.config
         with torch.no_grad():
             raw = self.actor_target(batch.next_obs)
@@ -364,7 +368,7 @@ class TD3:
             next_action = self.projection(raw + noise, batch.next_obs)
             q_next = torch.minimum(*(c(batch.next_obs, next_action) for c in self.critic_targets))
             return (cfg.reward_scale * batch.reward
-                    + cfg.discount * (1.0 - batch.terminated) * q_next)
+                    + cfg.discount ** batch.steps * (1.0 - batch.terminated) * q_next)
 
     def _update_actor(self, obs: torch.Tensor) -> float:
         """Gradient step on ``-Q_1(s, P(pi(s)))`` plus the distance-to-set penalty."""

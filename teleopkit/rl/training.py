@@ -54,7 +54,7 @@ from teleopkit.files import atomic_write, run_lock
 from teleopkit.rl.controllers import HeldController
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.policy import GainPolicy
-from teleopkit.rl.replay import ReplayBuffer
+from teleopkit.rl.replay import NStepWindow, ReplayBuffer
 from teleopkit.rl.td3 import TD3, TD3Config
 
 __all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "TrainConfig",
@@ -103,6 +103,9 @@ class TrainConfig:
         ``num_envs``: the observation statistics come from them).
     updates_per_step : int
         Gradient updates per vector step (``num_envs`` transitions).
+    n_step : int
+        Steps each stored transition spans (:class:`~teleopkit.rl.replay.NStepWindow`; 1: the
+        paper's one-step transitions).
     buffer_size : int
         Replay capacity in transitions.
     checkpoint_every : int
@@ -129,6 +132,7 @@ class TrainConfig:
     episode_length: float = 40.0
     learning_starts: int = 64_000
     updates_per_step: int = 1
+    n_step: int = 1
     buffer_size: int = 1_000_000
     checkpoint_every: int = 1
     validation_scenarios: int = 16
@@ -137,7 +141,7 @@ class TrainConfig:
         default_factory=lambda: TD3Config(discount=0.95, actor_lr=1e-3, critic_lr=1e-3))
 
     def __post_init__(self) -> None:
-        for name in ("total_steps", "num_envs", "updates_per_step", "buffer_size",
+        for name in ("total_steps", "num_envs", "updates_per_step", "n_step", "buffer_size",
                      "checkpoint_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -231,6 +235,7 @@ class _Run:
         self.low, self.high = space.low, space.high
         obs_dim = int(np.prod(self.env.single_observation_space.shape or (0,)))
         self.buffer = ReplayBuffer(config.buffer_size, obs_dim, len(self.low), int(buffer_seed))
+        self.window = NStepWindow(config.n_step, config.td3.discount)
         self.explore = np.random.default_rng(explore_seed)
         self.counters = _Counters()
         self.best_actor: dict[str, torch.Tensor] | None = None
@@ -349,13 +354,15 @@ class _Run:
         done = False
         while not done:
             next_obs, reward, terminated, truncated, info = self.env.step(self._actions(obs))
-            self.buffer.add(obs, info["applied_action"], reward, next_obs, terminated)
+            done = bool(terminated.any() or truncated.any())
+            for transitions in self.window.push(obs, info["applied_action"], reward, next_obs,
+                                                terminated, done):
+                self.buffer.add(*transitions)
             returns += reward
             counters.step += self.config.num_envs
             counters.vector_steps += 1
             updating += self._learn(losses)
             obs = next_obs
-            done = bool(terminated.any() or truncated.any())
             on_step(self.config.num_envs)
         counters.rounds += 1
         counters.unsafe_actions += self.env.unsafe_actions - unsafe

@@ -51,6 +51,20 @@ def test_target_update_is_a_convex_combination(layer):
         assert not torch.equal(new, old)
 
 
+def test_critic_target_bootstraps_with_the_discount_to_the_transition_span(layer):
+    config = TD3Config(batch_size=32, discount=0.9, target_noise=0.0, reward_scale=0.5)
+    agent = make_agent(layer, config=config)
+    batch = filled_buffer(layer).sample(32)
+    steps = torch.tensor([1.0, 4.0] * 16)
+    terminated = torch.tensor([0.0] * 31 + [1.0])
+    spanning = batch._replace(steps=steps, terminated=terminated)
+    with torch.no_grad():
+        next_action = agent.projection(agent.actor_target(batch.next_obs), batch.next_obs)
+        q_next = torch.minimum(*(c(batch.next_obs, next_action) for c in agent.critic_targets))
+    expected = 0.5 * batch.reward + 0.9 ** steps * (1 - terminated) * q_next
+    torch.testing.assert_close(agent._critic_target(spanning), expected)
+
+
 def test_actor_and_targets_update_every_policy_delay_steps(layer):
     agent = make_agent(layer)  # policy_delay 2
     buffer = filled_buffer(layer)

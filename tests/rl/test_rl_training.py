@@ -96,12 +96,14 @@ def test_seeded_runs_are_reproducible():
     assert not torch.equal(flat(a.agent), flat(c.agent))
 
 
-def test_resume_continues_bit_identically(tmp_path):
-    straight = train(TINY, tmp_path / "straight", progress=False)
-    half = replace(TINY, total_steps=TINY.total_steps // 2)
+@pytest.mark.parametrize("n_step", [1, 4])
+def test_resume_continues_bit_identically(tmp_path, n_step):
+    config = replace(TINY, n_step=n_step)  # n-step: the window is empty at a round's end
+    straight = train(config, tmp_path / "straight", progress=False)
+    half = replace(config, total_steps=config.total_steps // 2)
     train(half, tmp_path / "split", progress=False)
     assert load_checkpoint(tmp_path / "split" / CHECKPOINT)["counters"]["rounds"] == 6
-    resumed = train(TINY, tmp_path / "split", resume=True, progress=False)
+    resumed = train(config, tmp_path / "split", resume=True, progress=False)
     assert torch.equal(flat(straight.agent), flat(resumed.agent))
     obs = np.random.default_rng(0).normal(size=(3, 14))
     np.testing.assert_array_equal(straight.best_policy(obs), resumed.best_policy(obs))
@@ -199,8 +201,8 @@ def test_a_directory_in_use_is_refused_and_a_killed_runs_lock_taken_over(tmp_pat
     assert (tmp_path / CHECKPOINT).exists() and not lock.exists()
 
 
-@pytest.mark.parametrize("bad", [{"total_steps": 0}, {"num_envs": 0}, {"learning_starts": 1},
-                                 {"episode_length": 0.0}, {"seed": -1},
+@pytest.mark.parametrize("bad", [{"total_steps": 0}, {"num_envs": 0}, {"n_step": 0},
+                                 {"learning_starts": 1}, {"episode_length": 0.0}, {"seed": -1},
                                  {"validation_scenarios": -1}])
 def test_config_rejects_bad_values(bad):
     with pytest.raises(ValueError):
