@@ -1,19 +1,23 @@
 """Time to 10 % below the frozen best static gains: teleopkit's trainer against Stable-Baselines3.
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
-        [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16]
+        [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16 ...]
+        [--learning-rates 1e-3 ...] [--n-steps 1 ...]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
-machine, one run after the other. Both trainers get the recipe's settings: learning rates 1e-3,
-batch 512, a warm-up of one round (64 000 transitions of uniform random gains), rewards scaled by
+machine, one run after the other. Both trainers get the recipe's settings but for the grid of
+the command line (parallel scenarios, discount, learning rates; the steps per transition of
+teleopkit's trainer): batch 512, a warm-up of one round (64 000 transitions of uniform random gains), rewards scaled by
 0.01, one gradient update per vector step of 16 transitions, observations standardised with
 statistics frozen from the warm-up, the paper's network widths, Gaussian exploration of 4 gain
 units, the discount given. After every round (one 40 s episode of every scenario) the
 deterministic actor is validated on the recipe's 16 validation scenarios; a run stops at the
 first round whose validation cost is 10 % below that of the best static gains of the frozen
-class there. Printed per trainer, discount and seed: that round and the wall-clock time to it
-(training and validations; the static gains' search is excluded and printed apart).
+class there. Printed per trainer, setting and seed: that round, the wall-clock time to it
+(training and validations; the static gains' search is excluded and printed apart) and where
+that time went: the simulator, the safety layer's projection, the gradient updates (SB3:
+its ``train`` calls, sampling included) and the validations.
 
 What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
 the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
@@ -25,7 +29,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -48,23 +52,42 @@ RECIPE = TrainConfig()
 REWARD_SCALE = RECIPE.td3.reward_scale
 
 
+SPLIT = ("simulation", "projection", "update", "validation")
+"""Where a run's time goes, as both trainers report it."""
+
+
 class _Reached(Exception):
     """Raised by a round callback to stop a run at its first round below the target."""
 
 
-def _teleopkit(seed: int, discount: float, rounds: int, target: float,
-               config: FlexTeleopConfig, envs: int) -> tuple[int, float, float]:
-    """Round, validation cost and wall time of teleopkit's recipe at the first round below."""
-    per_round = envs * config.max_steps
-    settings = TrainConfig(total_steps=rounds * per_round, seed=seed, num_envs=envs,
-                           learning_starts=per_round,
+class Setting(NamedTuple):
+    """One trainer's settings in the race."""
+
+    seed: int
+    discount: float
+    learning_rate: float
+    envs: int
+    n_step: int
+
+
+def _teleopkit(setting: Setting, rounds: int, target: float,
+               config: FlexTeleopConfig) -> dict[str, float]:
+    """Round, validation cost, wall time and its split at the first round below the target."""
+    per_round = setting.envs * config.max_steps
+    rate = setting.learning_rate
+    settings = TrainConfig(total_steps=rounds * per_round, seed=setting.seed,
+                           num_envs=setting.envs, learning_starts=per_round,
+                           n_step=setting.n_step,
                            buffer_size=max(RECIPE.buffer_size, 2 * per_round),
-                           td3=TD3Config(discount=discount, actor_lr=1e-3, critic_lr=1e-3))
-    last: list[float] = []
+                           td3=TD3Config(discount=setting.discount, actor_lr=rate,
+                                         critic_lr=rate))
+    found: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as out:
         def check(done: int) -> None:
-            row = pd.read_csv(f"{out}/train_log.csv").iloc[-1]
-            last[:] = [done, row["validation_cost"], row["wall_time"]]
+            log = pd.read_csv(f"{out}/train_log.csv")
+            row = log.iloc[-1]
+            found.update(round=done, cost=row["validation_cost"], wall=row["wall_time"],
+                         **{part: log[f"{part}_time"].sum() for part in SPLIT})
             if row["validation_cost"] <= target:
                 raise _Reached
 
@@ -72,36 +95,48 @@ def _teleopkit(seed: int, discount: float, rounds: int, target: float,
             train(settings, out, env_config=config, progress=False, on_round=check)
         except _Reached:
             pass
-    return int(last[0]), last[1], last[2]
+    return found
 
 
-def _sb3(seed: int, discount: float, rounds: int, target: float,
-         config: FlexTeleopConfig, envs: int) -> tuple[int, float, float]:
-    """Round, validation cost and wall time of SB3's TD3 at the first round below."""
+def _sb3(setting: Setting, rounds: int, target: float,
+         config: FlexTeleopConfig) -> dict[str, float]:
+    """Round, validation cost, wall time and its split at the first round below the target."""
     start = time.perf_counter()
-    env = _SB3View(FlexTeleopVectorEnv(envs, config), seed)
-    per_round = envs * config.max_steps
+    env = _SB3View(FlexTeleopVectorEnv(setting.envs, config), setting.seed)
+    per_round = setting.envs * config.max_steps
     half = (env.high - env.low) / 2
-    model = TD3("MlpPolicy", env, learning_rate=1e-3,
+    model = TD3("MlpPolicy", env, learning_rate=setting.learning_rate,
                 buffer_size=max(RECIPE.buffer_size, 2 * per_round),
                 learning_starts=per_round, batch_size=RECIPE.td3.batch_size, tau=0.005,
-                gamma=discount, train_freq=(1, "step"), gradient_steps=1, policy_delay=2,
-                target_policy_noise=0.2, target_noise_clip=0.5,
+                gamma=setting.discount, train_freq=(1, "step"), gradient_steps=1,
+                policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5,
                 action_noise=NormalActionNoise(np.zeros(4), RECIPE.td3.exploration_std / half),
                 policy_kwargs={"net_arch": {"pi": [128, 64], "qf": [128, 64, 60, 36]}},
-                seed=seed, device="cpu", verbose=0)
-    found: list[float] = []
+                seed=setting.seed, device="cpu", verbose=0)
+    seconds = {"update": 0.0, "validation": 0.0}
+    learn = model.train
+
+    def timed_train(*args: Any, **kwargs: Any) -> None:
+        began = time.perf_counter()
+        learn(*args, **kwargs)
+        seconds["update"] += time.perf_counter() - began
+
+    model.train = timed_train  # type: ignore[method-assign]
+    found: dict[str, float] = {}
 
     class Validate(BaseCallback):
         def _on_step(self) -> bool:
             if self.num_timesteps % per_round:
                 return True
+            began = time.perf_counter()
             cost = env.validation_cost(self.model)
-            found[:] = [self.num_timesteps // per_round, cost, time.perf_counter() - start]
+            seconds["validation"] += time.perf_counter() - began
+            found.update(round=self.num_timesteps // per_round, cost=cost,
+                         wall=time.perf_counter() - start, **env.inner.seconds, **seconds)
             return cost > target
 
     model.learn(total_timesteps=rounds * per_round, callback=Validate())
-    return int(found[0]), found[1], found[2]
+    return found
 
 
 class _SB3View(VecEnv):
@@ -190,8 +225,12 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=12)
     parser.add_argument("--discounts", nargs="+", type=float, default=[0.95, 0.99])
     parser.add_argument("--which", nargs="+", default=["teleopkit", "sb3"])
-    parser.add_argument("--envs", type=int, default=RECIPE.num_envs,
+    parser.add_argument("--envs", nargs="+", type=int, default=[RECIPE.num_envs],
                         help="parallel scenarios of both trainers (a round is one episode each)")
+    parser.add_argument("--learning-rates", nargs="+", type=float, default=[1e-3],
+                        help="learning rates of actor and critics, both trainers")
+    parser.add_argument("--n-steps", nargs="+", type=int, default=[RECIPE.n_step],
+                        help="steps per transition of teleopkit's trainer")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -203,17 +242,25 @@ def main() -> None:
           f"{static.round(3).tolist()}, found in {time.perf_counter() - start:.0f} s)")
     config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
-    print("\n| trainer | envs | discount | seed | round | validation cost | time to it [s] |")
-    print("|---|---|---|---|---|---|---|")
+    print("\n| trainer | envs | n-step | discount | learning rate | seed | round | validation cost "
+          "| time to it [s] | simulation | projection | updates | validation |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.which:
-        for discount in args.discounts:
-            for seed in args.seeds:
-                done, cost, wall = trainers[name](seed, discount, args.rounds, target, config,
-                                                  args.envs)
-                mark = "" if cost <= target else f" (not within {args.rounds} rounds)"
-                print(f"| {name} | {args.envs} | {discount:g} | {seed} | {done} | "
-                      f"{cost:.0f}{mark} | {wall:.0f} |", flush=True)
+        for setting in _grid(args, name):
+            found = trainers[name](setting, args.rounds, target, config)
+            mark = "" if found["cost"] <= target else f" (not within {args.rounds} rounds)"
+            split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
+            print(f"| {name} | {setting.envs} | {setting.n_step} | {setting.discount:g} | "
+                  f"{setting.learning_rate:g} | {setting.seed} | {found['round']:.0f} | "
+                  f"{found['cost']:.0f}{mark} | {found['wall']:.0f} | {split} |", flush=True)
 
+
+def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
+    """Every setting of the command line for one trainer (SB3 has no n-step option here)."""
+    steps = args.n_steps if name == "teleopkit" else [1]
+    return [Setting(seed, discount, rate, envs, n)
+            for envs in args.envs for n in steps for discount in args.discounts
+            for rate in args.learning_rates for seed in args.seeds]
 
 if __name__ == "__main__":
     main()
