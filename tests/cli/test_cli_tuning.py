@@ -99,6 +99,8 @@ def test_reproduce_command_writes_figures_and_table(tmp_path):
     names = {p.name for p in tmp_path.iterdir()}
     assert {"delay_profile.png", "adaptive_gains.png", "positions.png", "tracking_error.png",
             "damping_error.png", "summary.md", "summary.csv"} <= names
+    rows = pd.read_csv(tmp_path / "summary.csv")
+    assert {"TD3 (tank:3)", "gain law (tank:3)", "TD3 (paper, frozen)"} <= set(rows["controller"])
 
 
 def test_evaluate_refuses_a_certificate_that_does_not_cover_the_policy(tmp_path, capsys):
