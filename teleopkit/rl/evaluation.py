@@ -21,7 +21,7 @@ example one per training seed) also gets the standard deviation of the per-polic
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,7 +31,7 @@ from gymnasium.utils import seeding
 
 from teleopkit.certification.gain_classes import parse_gain_variation
 from teleopkit.delays.spec import check_trace_ends
-from teleopkit.rl.env import FlexTeleopConfig, TeleopBatch
+from teleopkit.rl.env import BatchStep, FlexTeleopConfig, TeleopBatch
 from teleopkit.setup import Setup
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.trajectory import Trajectory
@@ -43,6 +43,7 @@ __all__ = [
     "Controller",
     "Rollout",
     "closed_loop",
+    "episode_costs",
     "evaluate",
     "findings",
     "rollout",
@@ -210,25 +211,14 @@ def closed_loop(controller: Controller, scenario: Scenario,
     RuntimeError
         If a run leaves the state bound (a model failure under certified gains).
     """
-    config = config if config is not None else FlexTeleopConfig()
-    if scenario.params != config.params:
-        config = replace(config, setup=Setup.from_params(scenario.params, config.setup.network))
-    core = TeleopBatch(config, scenario.batch)
-    reset = getattr(controller, "reset", None)
-    if callable(reset):
-        reset()
-    obs = core.start(scenario)
+    core, obs = _started(controller, scenario, config)
     records: dict[str, list[np.ndarray]] = {"obs": [obs], "raw": [], "reward": [], "levels": []}
     parts, applied = [core.loop.simulator.initial_record()], []
-    for _ in range(config.max_steps):
-        step = core.step(np.asarray(controller(obs), dtype=float))
-        if step.terminated.any():
-            raise RuntimeError("a certified controller left the state bound (a model failure)")
-        obs = step.obs
+    for step in _played(controller, core, obs):
         parts.append(step.result)
         applied.append(step.info["applied_action"])
         level = step.info.get("schedule", np.full(scenario.batch, np.nan))
-        for key, value in (("obs", obs), ("raw", step.info["raw_action"]),
+        for key, value in (("obs", step.obs), ("raw", step.info["raw_action"]),
                            ("reward", step.reward), ("levels", level)):
             records[key].append(value)
     final = core.layer.run_time_state(scenario.batch)
@@ -237,6 +227,64 @@ def closed_loop(controller: Controller, scenario: Scenario,
     trajectory = Trajectory.join(parts, np.stack(applied))
     return Rollout(trajectory, unsafe_actions=core.unsafe_actions,
                    certificate=core.certificate.gain_variation, **arrays)
+
+
+def episode_costs(controller: Controller, scenario: Scenario,
+                  config: FlexTeleopConfig | None = None) -> tuple[np.ndarray, int]:
+    """The episode cost of each scenario under a controller, and nothing else.
+
+    :func:`closed_loop` without its records (a third of its time on large batches): what a
+    search that only compares costs needs.
+
+    Parameters
+    ----------
+    controller : Controller
+        Observations to raw gains.
+    scenario : Scenario
+        The batch of scenarios.
+    config : FlexTeleopConfig, optional
+        Environment settings (its ``params`` are replaced by the scenario's).
+
+    Returns
+    -------
+    costs : ndarray, shape (B,)
+        Minus the summed rewards: the same as ``-closed_loop(...).reward.sum(axis=0)``.
+    unsafe_actions : int
+        Applied gains outside the certified set (0 expected).
+
+    Raises
+    ------
+    RuntimeError
+        If a run leaves the state bound (a model failure under certified gains).
+    """
+    core, obs = _started(controller, scenario, config)
+    costs = np.zeros(scenario.batch)
+    for step in _played(controller, core, obs):
+        costs -= step.reward
+    return costs, core.unsafe_actions
+
+
+def _started(controller: Controller, scenario: Scenario,
+             config: FlexTeleopConfig | None) -> tuple[TeleopBatch, np.ndarray]:
+    """The batch of the scenarios, started, the controller reset; the first observation."""
+    config = config if config is not None else FlexTeleopConfig()
+    if scenario.params != config.params:
+        config = replace(config, setup=Setup.from_params(scenario.params, config.setup.network))
+    core = TeleopBatch(config, scenario.batch)
+    reset = getattr(controller, "reset", None)
+    if callable(reset):
+        reset()
+    return core, core.start(scenario)
+
+
+def _played(controller: Controller, core: TeleopBatch, obs: np.ndarray) -> Iterator[BatchStep]:
+    """Every step of one episode of ``core`` under ``controller``, from ``obs``."""
+    for _ in range(core.config.max_steps):
+        step = core.step(np.asarray(controller(obs), dtype=float))
+        if step.terminated.any():
+            raise RuntimeError("a certified controller left the state bound (a model failure)")
+        obs = step.obs
+        yield step
 
 
 def evaluate(controllers: Mapping[str, Controller | Sequence[Controller]], scenarios: int = 32,

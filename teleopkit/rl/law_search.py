@@ -42,7 +42,7 @@ import pandas as pd
 from teleopkit.files import atomic_write
 from teleopkit.progress import reports_progress
 from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import closed_loop
+from teleopkit.rl.evaluation import closed_loop, episode_costs
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.sim.scenarios import Scenario
 
@@ -219,8 +219,8 @@ class _Laws:
 def _costs(controller: Any, scenario: Scenario, config: FlexTeleopConfig,
            count: int) -> tuple[np.ndarray, int]:
     """Episode costs ``(count, S)`` of ``count`` laws on ``scenario`` repeated, unsafe actions."""
-    run = closed_loop(controller, scenario.repeat(count), config)
-    return -run.reward.sum(axis=0).reshape(count, scenario.batch), run.unsafe_actions
+    costs, unsafe = episode_costs(controller, scenario.repeat(count), config)
+    return costs.reshape(count, scenario.batch), unsafe
 
 
 def _objective(costs: np.ndarray, start: np.ndarray, harm: float) -> np.ndarray:

@@ -13,6 +13,8 @@ from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import (
     SUMMARY_METRICS,
+    closed_loop,
+    episode_costs,
     evaluate,
     findings,
     rollout,
@@ -44,6 +46,16 @@ def test_static_cost_is_the_environment_return(layer):
     for gain, cost in zip(gains, costs, strict=True):
         run = rollout(ConstantGains(gain), 3, 11, ONE_SECOND)
         np.testing.assert_allclose(-run.reward.sum(axis=0), cost, rtol=1e-12)
+
+
+def test_episode_costs_are_the_closed_loop_costs_and_refuse_a_failed_run(policy):
+    scenario = paper_scenarios(12, 3)
+    costs, unsafe = episode_costs(policy, scenario, ONE_SECOND)
+    np.testing.assert_array_equal(costs, -closed_loop(policy, scenario, ONE_SECOND).reward.sum(
+        axis=0))
+    assert unsafe == 0 and np.ptp(costs) > 0
+    with pytest.raises(RuntimeError, match="left the state bound"):
+        episode_costs(wild, scenario, FlexTeleopConfig(episode_length=0.3, state_bound=0.05))
 
 
 def test_every_applied_action_lies_in_the_set(layer, policy):
