@@ -21,8 +21,11 @@ def test_the_shipped_training_distribution_mixes_motions_starts_and_delays():
     starts = scenario.starts
     assert np.any(np.all(starts == 0, axis=(1, 2)))  # some at rest
     assert np.any(np.all(starts[:, 1] == starts[:, 2], axis=1) & np.any(starts[:, 0] != 0, axis=1))
+    assert np.any(np.abs(starts) > 0.3) and np.all(np.abs(starts) <= 0.6)  # up to 0.6 rad
     delays = scenario.forward.sample(np.linspace(0, 10, 50))
-    assert delays.shape == (50, 64) and 0.44 < delays.min() and delays.max() <= 1.0
+    assert delays.shape == (50, 64) and 0.19 < delays.min() and delays.max() <= 1.0
+    assert np.any(np.all(np.isclose(delays, 0.2), axis=0))  # constant 0.2 s
+    assert np.any(np.all(np.isclose(delays, 0.6), axis=0))  # constant 0.6 s
     assert Setup.from_data(setup.to_data()) == setup
 
 
