@@ -1,7 +1,7 @@
-"""Replay storage of the TD3 learner: preallocated numpy arrays with seeded sampling, and the
-window that turns one-step transitions into ``n``-step ones.
+"""Replay storage of the TD3 learner, and the window that makes ``n``-step transitions.
 
-An ``n``-step transition ``(s_t, a_t, R, s_{t+k}, k)`` carries the discounted reward sum
+The buffer is preallocated numpy arrays with seeded sampling. An ``n``-step transition
+``(s_t, a_t, R, s_{t+k}, k)`` carries the discounted reward sum
 ``R = sum_{i<k} discount^i r_{t+i}`` over ``k = n`` steps, or fewer where the episode ended
 first; the critic's target bootstraps with ``discount^k`` (Sutton & Barto 2018, section 7.1;
 Hessel et al. 2018 for its use with replay). Credit then travels ``n`` steps per update instead

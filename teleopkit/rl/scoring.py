@@ -77,8 +77,11 @@ def _reward(track: np.ndarray, track_start: int, damp: np.ndarray, damp_start: i
 
 @njit(**_OPTIONS)
 def _outside(state: np.ndarray, bounded: int, bound: float, failed: np.ndarray) -> int:
-    """Mark the states with an entry that is not finite, or among the first ``bounded`` and
-    beyond ``bound`` (:attr:`~teleopkit.sim.state.StateLayout.bounded`); count them."""
+    """Mark the states that left the bound; count them.
+
+    An entry that is not finite, or one of the first ``bounded`` beyond ``bound``
+    (:attr:`~teleopkit.sim.state.StateLayout.bounded`), marks its state.
+    """
     count = 0
     for b in range(state.shape[0]):
         failed[b] = False

@@ -11,10 +11,15 @@ from gymnasium.utils.env_checker import check_env
 
 import teleopkit
 from teleopkit.certification.certifier import default_certificate
-from teleopkit.rl.controllers import ConstantGains
-from teleopkit.rl.env import (ENV_ID, FlexTeleopConfig, FlexTeleopEnv, FlexTeleopVectorEnv,
-                            RewardWeights)
 from teleopkit.rl import evaluation
+from teleopkit.rl.controllers import ConstantGains
+from teleopkit.rl.env import (
+    ENV_ID,
+    FlexTeleopConfig,
+    FlexTeleopEnv,
+    FlexTeleopVectorEnv,
+    RewardWeights,
+)
 from teleopkit.safety import Fallback
 from teleopkit.sim.state import StateLayout
 
