@@ -6,18 +6,18 @@
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
-machine, one run after the other. Both trainers get the recipe's settings but for the grid of
-the command line (parallel scenarios, discount, learning rates; the steps per transition of
+machine, one run after the other. Both trainers get the recipe's settings but for the grid of the
+command line (parallel scenarios, discount, learning rates; the steps per transition of
 teleopkit's trainer): batch 512, a warm-up of one round (64 000 transitions of uniform random
 gains), rewards scaled by 0.01, one gradient update per vector step of 16 transitions,
 observations standardised with statistics frozen from the warm-up, the paper's network widths,
-Gaussian exploration of 4 gain units, the discount given. After every round (one 40 s episode
-of every scenario) the deterministic actor is validated on the recipe's 16 validation scenarios; a run stops at the
-first round whose validation cost is 10 % below that of the best static gains of the frozen
-class there. Printed per trainer, setting and seed: that round, the wall-clock time to it
-(training and validations; the static gains' search is excluded and printed apart) and where
-that time went: the simulator, the safety layer's projection, the gradient updates (SB3:
-its ``train`` calls, sampling included) and the validations.
+Gaussian exploration of 4 gain units, the discount given. After every round (one 40 s episode of
+every scenario) the deterministic actor is validated on the recipe's 16 validation scenarios; a
+run stops at the first round whose validation cost is 10 % below that of the best static gains of
+the frozen class there. Printed per trainer, setting and seed: that round, the wall-clock time to
+it (training and validations; the static gains' search is excluded and printed apart) and where
+that time went: the simulator, the safety layer's projection, the gradient updates (SB3: its
+``train`` calls, sampling included) and the validations.
 
 What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
 the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
