@@ -2,7 +2,7 @@
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
         [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16 ...]
-        [--learning-rates 1e-3 ...] [--n-steps 1 ...]
+        [--learning-rates 1e-3 ...] [--n-steps 1 ...] [--critic-actions applied raw]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
@@ -68,6 +68,7 @@ class Setting(NamedTuple):
     learning_rate: float
     envs: int
     n_step: int
+    critic_action: str
 
 
 def _teleopkit(setting: Setting, rounds: int, target: float,
@@ -80,7 +81,7 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
                            n_step=setting.n_step,
                            buffer_size=max(RECIPE.buffer_size, 2 * per_round),
                            td3=TD3Config(discount=setting.discount, actor_lr=rate,
-                                         critic_lr=rate))
+                                         critic_lr=rate, critic_action=setting.critic_action))
     found: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as out:
         def check(done: int) -> None:
@@ -231,6 +232,9 @@ def main() -> None:
                         help="learning rates of actor and critics, both trainers")
     parser.add_argument("--n-steps", nargs="+", type=int, default=[RECIPE.n_step],
                         help="steps per transition of teleopkit's trainer")
+    parser.add_argument("--critic-actions", nargs="+", default=[RECIPE.td3.critic_action],
+                        choices=["applied", "raw"],
+                        help="what teleopkit's critics value (TD3Config.critic_action)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -242,25 +246,31 @@ def main() -> None:
           f"{static.round(3).tolist()}, found in {time.perf_counter() - start:.0f} s)")
     config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
-    print("\n| trainer | envs | n-step | discount | learning rate | seed | round | validation cost "
-          "| time to it [s] | simulation | projection | updates | validation |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n| trainer | envs | n-step | critic values | discount | learning rate | seed | round "
+          "| validation cost | time to it [s] | simulation | projection | updates | validation |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.which:
         for setting in _grid(args, name):
             found = trainers[name](setting, args.rounds, target, config)
             mark = "" if found["cost"] <= target else f" (not within {args.rounds} rounds)"
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
-            print(f"| {name} | {setting.envs} | {setting.n_step} | {setting.discount:g} | "
+            print(f"| {name} | {setting.envs} | {setting.n_step} | {setting.critic_action} | "
+                  f"{setting.discount:g} | "
                   f"{setting.learning_rate:g} | {setting.seed} | {found['round']:.0f} | "
                   f"{found['cost']:.0f}{mark} | {found['wall']:.0f} | {split} |", flush=True)
 
 
 def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
-    """Every setting of the command line for one trainer (SB3 has no n-step option here)."""
-    steps = args.n_steps if name == "teleopkit" else [1]
-    return [Setting(seed, discount, rate, envs, n)
-            for envs in args.envs for n in steps for discount in args.discounts
-            for rate in args.learning_rates for seed in args.seeds]
+    """Every setting of the command line for one trainer.
+
+    SB3 has no n-step option here, and its critics value the raw actions.
+    """
+    ours = name == "teleopkit"
+    steps = args.n_steps if ours else [1]
+    valued = args.critic_actions if ours else ["raw"]
+    return [Setting(seed, discount, rate, envs, n, value)
+            for envs in args.envs for n in steps for value in valued
+            for discount in args.discounts for rate in args.learning_rates for seed in args.seeds]
 
 if __name__ == "__main__":
     main()

@@ -36,8 +36,11 @@ projector on an edge, zero at a vertex). The Q term moves the applied action alo
 boundary; the penalty (``projection_penalty``) pulls raw actions back towards the set, where the Q
 term alone gives no gradient in the normal direction, so raw outputs cannot drift away unseen.
 Target policy smoothing adds clipped noise to the target actor's raw action and projects the
-result too. A rate bound of a rate-certified layer is enforced by the environment but is not part
-of this projection (the critic still sees the applied, rate-limited action).
+result too. A rate bound of a rate-certified layer is enforced by the environment but is not
+part of this projection (the critic still sees the applied, rate-limited action). With
+``TD3Config(critic_action="raw")`` the critics value the raw gains instead (clipped to the box)
+and the projection stays in the environment, as for a trainer that does not know the set; the
+environment projects every applied gain either way.
 
 Inputs of both networks are standardised with fixed statistics (:meth:`TD3.set_normalizer`, set
 once from the first collected transitions): the entries' spreads differ by three orders of
@@ -124,6 +127,13 @@ class TD3Config:
         Gains the untrained actor outputs (:class:`~teleopkit.rl.networks.Actor`); default the
         centre of the box. Starting from the best static gains of the certified set makes
         training a refinement of them (residual-style: Silver et al. 2018).
+    critic_action : {"applied", "raw"}
+        What the critics learn the value of. ``"applied"`` (the paper's design): the certified
+        gains the safety layer applied, the actor trained through the exact projection.
+        ``"raw"``: the gains the actor asked for, clipped to the box, the projection left to
+        the environment as part of its dynamics (as a library trainer that knows nothing of
+        the set learns, e.g. Stable-Baselines3's TD3); every applied gain is projected either
+        way.
     """
 
     discount: float = 0.99
@@ -145,8 +155,12 @@ class TD3Config:
     hidden_action: tuple[int, ...] = (64,)
     hidden_merged: tuple[int, ...] = (60, 36)
     start: tuple[float, ...] | None = None
+    critic_action: str = "applied"
 
     def __post_init__(self) -> None:
+        if self.critic_action not in ("applied", "raw"):
+            raise ValueError("critic_action must be 'applied' or 'raw', got "
+                             f"{self.critic_action!r}")
         if not 0 <= self.discount <= 1:
             raise ValueError(f"discount must be in [0, 1], got {self.discount}")
         if not 0 < self.tau <= 1:
@@ -246,6 +260,8 @@ class TD3:
         self.critic_optimizers = [torch.optim.Adam(c.parameters(), lr=cfg.critic_lr, fused=True)
                                   for c in self.critics]
         self.half_range = torch.as_tensor(half_range(low, high), dtype=torch.float32)
+        self.box = (torch.as_tensor(low, dtype=torch.float32),
+                    torch.as_tensor(high, dtype=torch.float32))
         self.updates = 0
         # Parameter lists taken once: walking the modules at every clip, soft update and critic
         # freeze cost about 0.1 ms per update.
@@ -355,7 +371,9 @@ class TD3:
                 "actor_loss": actor_loss}
 
     def _critic_target(self, batch: Batch) -> torch.Tensor:
-        """``R + discount^k (1 - terminated) min_i Q'_i(s', P(pi'(s') + clipped noise))``.
+        """``R + discount^k (1 - terminated) min_i Q'_i(s', a(pi'(s') + clipped noise))``.
+
+        ``a`` is :meth:`_valued`: the projection onto the set, or the clip to the box.
 
         ``R`` is the transition's discounted reward sum over its ``k`` steps (``batch.steps``;
         ``R = r`` and ``k = 1`` for a one-step transition).
@@ -365,15 +383,26 @@ class TD3:
             raw = self.actor_target(batch.next_obs)
             noise = torch.randn(raw.shape, generator=self.generator) * cfg.target_noise
             noise = noise.clamp(-cfg.target_noise_clip, cfg.target_noise_clip) * self.half_range
-            next_action = self.projection(raw + noise, batch.next_obs)
+            next_action = self._valued(raw + noise, batch.next_obs)
             q_next = torch.minimum(*(c(batch.next_obs, next_action) for c in self.critic_targets))
             return (cfg.reward_scale * batch.reward
                     + cfg.discount ** batch.steps * (1.0 - batch.terminated) * q_next)
 
+    def _valued(self, raw: torch.Tensor, obs: torch.Tensor) -> torch.Tensor:
+        """The action the critics value for raw gains: projected, or clipped to the box."""
+        if self.config.critic_action == "raw":
+            return torch.minimum(torch.maximum(raw, self.box[0]), self.box[1])
+        return self.projection(raw, obs)
+
     def _update_actor(self, obs: torch.Tensor) -> float:
-        """Gradient step on ``-Q_1(s, P(pi(s)))`` plus the distance-to-set penalty."""
+        """Gradient step on ``-Q_1(s, a(pi(s)))`` plus the distance-to-set penalty.
+
+        ``a`` is :meth:`_valued`; the penalty, the squared distance of the raw gains to it in
+        half-ranges, pulls raw gains back to the set (or the box) where the value gives no
+        gradient.
+        """
         raw = self.actor(obs)
-        applied = self.projection(raw, obs)
+        applied = self._valued(raw, obs)
         outside = ((raw - applied) / self.half_range).pow(2).sum(-1).mean()
         _requires_grad(self._critic_params[0], False)  # no gradients for the critic's weights
         loss = -self.critics[0](obs, applied).mean() + self.config.projection_penalty * outside

@@ -299,6 +299,15 @@ class _Run:
         held = None if self.held_noise is None else self.held_noise * std
         return self.agent.act(obs) + self._hold_stiffness(noise, held)
 
+    def _valued(self, asked: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The action stored: the applied gains, or those asked for clipped to the box.
+
+        Which one is ``TD3Config.critic_action``'s choice.
+        """
+        if self.config.td3.critic_action == "raw":
+            return np.clip(asked, self.low, self.high)
+        return info["applied_action"]
+
     def _hold_stiffness(self, action: np.ndarray, held: np.ndarray | None) -> np.ndarray:
         """``action`` with its stiffness columns replaced by the episode's draw, if any.
 
@@ -353,10 +362,11 @@ class _Run:
         losses: list[dict[str, float]] = []
         done = False
         while not done:
-            next_obs, reward, terminated, truncated, info = self.env.step(self._actions(obs))
+            asked = self._actions(obs)
+            next_obs, reward, terminated, truncated, info = self.env.step(asked)
             done = bool(terminated.any() or truncated.any())
-            for transitions in self.window.push(obs, info["applied_action"], reward, next_obs,
-                                                terminated, done):
+            for transitions in self.window.push(obs, self._valued(asked, info), reward,
+                                                next_obs, terminated, done):
                 self.buffer.add(*transitions)
             returns += reward
             counters.step += self.config.num_envs

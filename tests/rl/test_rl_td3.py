@@ -51,15 +51,23 @@ def test_target_update_is_a_convex_combination(layer):
         assert not torch.equal(new, old)
 
 
-def test_critic_target_bootstraps_with_the_discount_to_the_transition_span(layer):
-    config = TD3Config(batch_size=32, discount=0.9, target_noise=0.0, reward_scale=0.5)
+@pytest.mark.parametrize("valued", ["applied", "raw"])
+def test_critic_target_bootstraps_with_the_discount_to_the_transition_span(layer, valued):
+    # an actor that starts stiff and barely damped: outside the set, so the two differ
+    config = TD3Config(batch_size=32, discount=0.9, target_noise=0.0, reward_scale=0.5,
+                       critic_action=valued, start=(45.0, 45.0, 2.0, 2.0))
     agent = make_agent(layer, config=config)
     batch = filled_buffer(layer).sample(32)
     steps = torch.tensor([1.0, 4.0] * 16)
     terminated = torch.tensor([0.0] * 31 + [1.0])
     spanning = batch._replace(steps=steps, terminated=terminated)
     with torch.no_grad():
-        next_action = agent.projection(agent.actor_target(batch.next_obs), batch.next_obs)
+        raw = agent.actor_target(batch.next_obs)
+        low, high = (torch.as_tensor(x, dtype=torch.float32) for x in (LOW, HIGH))
+        # the value of the applied gains, or of the raw ones in the box (the set left to the env)
+        projected = agent.projection(raw, batch.next_obs)
+        assert not torch.allclose(projected, torch.clamp(raw, low, high))
+        next_action = projected if valued == "applied" else torch.clamp(raw, low, high)
         q_next = torch.minimum(*(c(batch.next_obs, next_action) for c in agent.critic_targets))
     expected = 0.5 * batch.reward + 0.9 ** steps * (1 - terminated) * q_next
     torch.testing.assert_close(agent._critic_target(spanning), expected)
@@ -138,7 +146,8 @@ def test_exploration_noise_and_its_decay(layer):
 
 @pytest.mark.parametrize("bad", [{"discount": 1.5}, {"tau": 0.0}, {"batch_size": 0},
                                  {"policy_delay": 0}, {"actor_lr": 0.0},
-                                 {"exploration_std_min": 5.0}, {"exploration_decay": 1.0}])
+                                 {"exploration_std_min": 5.0}, {"exploration_decay": 1.0},
+                                 {"critic_action": "projected"}])
 def test_config_rejects_bad_values(bad):
     with pytest.raises(ValueError):
         TD3Config(**bad)

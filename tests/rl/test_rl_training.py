@@ -96,6 +96,22 @@ def test_seeded_runs_are_reproducible():
     assert not torch.equal(flat(a.agent), flat(c.agent))
 
 
+@pytest.mark.parametrize("valued", ["applied", "raw"])
+def test_the_buffer_stores_what_the_critics_value(valued):
+    from teleopkit.rl.training import _Run
+
+    config = replace(TINY, td3=replace(TINY.td3, critic_action=valued, exploration_std=30.0))
+    run = _Run(config, None)
+    for _ in range(3):  # the warm-up, then two rounds of the actor plus wide noise
+        run.run_round(lambda steps: None)
+    stored = run.buffer.action[:len(run.buffer)]
+    inside = run.env.safety_layer.polytope.contains(stored, tol=1e-3)  # float32 storage
+    assert np.all((stored >= run.low - 1e-6) & (stored <= run.high + 1e-6))
+    # applied gains are all certified; raw ones (clipped to the box) are not
+    assert inside.all() if valued == "applied" else not inside.all()
+    assert run.counters.unsafe_actions == 0  # the environment projected every one
+
+
 @pytest.mark.parametrize("n_step", [1, 4])
 def test_resume_continues_bit_identically(tmp_path, n_step):
     config = replace(TINY, n_step=n_step)  # n-step: the window is empty at a round's end
