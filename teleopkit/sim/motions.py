@@ -120,11 +120,20 @@ class SineMotion:
             ``q_h`` in radians.
         """
         t = np.asarray(times, dtype=float)
-        # parameters first, times last: the ufuncs run along the long axis
-        amplitude, frequency, phase, decay = (np.moveaxis(a, 0, -1)[..., None] for a in (
-            self.amplitudes, self.frequencies, self.phases, self.decays))
-        wave = amplitude * np.sin(frequency * t + phase) * np.exp(-decay * t)
-        return np.moveaxis(wave.sum(axis=0), -1, 0).transpose(0, 2, 1)
+        components, columns, n = self.amplitudes.shape[1], self.columns, self.n_joints
+        # per component, the (joint, scenario) pairs that move, times last: the ufuncs run along
+        # the long axis, and a mix's padding and still operators (zero amplitude) cost nothing
+        out = np.zeros((n * columns, t.size))
+        for c in range(components):
+            amplitude, frequency, phase, decay = (a[:, c].T.reshape(-1) for a in (
+                self.amplitudes, self.frequencies, self.phases, self.decays))
+            moving = np.flatnonzero(amplitude)
+            wave = amplitude[moving, None] * np.sin(frequency[moving, None] * t
+                                                     + phase[moving, None])
+            decaying = np.flatnonzero(decay[moving])
+            wave[decaying] *= np.exp(-decay[moving][decaying, None] * t)
+            out[moving] += wave
+        return out.reshape(n, columns, t.size).transpose(2, 1, 0)
 
 
 @dataclass(frozen=True, eq=False)
