@@ -45,6 +45,19 @@ def test_the_shipped_law_records_what_it_was_searched_for():
     assert meta["law_search"]["harm"] == 1.0 and meta["recipe"] == "gain law (CMA-ES)"
 
 
+@pytest.mark.parametrize("name", ["covered", "law"])
+def test_shipped_tuners_carry_their_comparators_for_the_paper_setup(name):
+    # evaluate and reproduce read them instead of searching them on a user's first run
+    from teleopkit.rl.comparators import Comparators
+    from teleopkit.rl.comparison import evaluation_config, policy_certificate
+    from teleopkit.setup import Setup
+
+    policy = GainPolicy.load(name)
+    certificate = policy_certificate(policy)
+    assert Comparators.stored(policy, certificate,
+                              evaluation_config(certificate, Setup.paper())) is not None
+
+
 def test_a_path_still_loads(tmp_path):
     path = tmp_path / "mine.npz"
     GainPolicy.load("paper").save(path)
