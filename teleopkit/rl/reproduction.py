@@ -103,7 +103,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
                                    law_row: (tuner_controller(law), replace(
                                        config, observation=policy_observation(law)))},
                            setup=setup)
-    tuner = f"TD3 ({certificate.gain_variation})"
+    tuner = tuner_label(covered, certificate.gain_variation)
     delays = ", ".join(dict.fromkeys(config.setup.network.forward.profiles
                                      + config.setup.network.backward.profiles))
     preamble = report_preamble(comparators, scenarios, seed, delays, tuner, setup=config.setup,
