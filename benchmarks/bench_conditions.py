@@ -38,6 +38,7 @@ from teleopkit.rl.comparison import (
     policy_certificate,
     tuner_label,
 )
+from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import MotionSpec, Network, Setup, StartSpec
 from teleopkit.setup.network import Channel
@@ -150,10 +151,11 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
                ) -> tuple[pd.DataFrame, list[dict[str, object]]]:
     """Every tuner on one family: per-scenario rows and the summary rows."""
     frames, rows = [], []
-    first = next(iter(tuners.values()))
-    variation = policy_certificate(first).gain_variation
+    variation = policy_certificate(next(iter(tuners.values()))).gain_variation
     certificate = default_certificate(setup.params, setup.network.reached_bounds, variation)
     config = evaluation_config(certificate, setup)
+    tuners = {label: law_under(policy, config) for label, policy in tuners.items()}
+    first = next(iter(tuners.values()))
     found = comparators_for(first, certificate, config)
     for tuner_name, policy in tuners.items():
         comparators = found if policy is first else found.for_policy(policy, config)

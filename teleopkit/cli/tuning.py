@@ -247,6 +247,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         tuner_label,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
+    from teleopkit.rl.law_search import law_under
     from teleopkit.rl.policy import GainPolicy
 
     check_output_dir(out, "--out")
@@ -265,6 +266,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
     config = evaluation_config(chosen, setup, delay, duration)
     _check_certificate(chosen, config)
+    policies = [law_under(policy, config) for policy in policies]
 
     def searching() -> None:
         click.echo(f"finding the comparators of {chosen.gain_variation} for setup "

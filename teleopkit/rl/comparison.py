@@ -35,6 +35,7 @@ from teleopkit.rl.comparators import (
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate
 from teleopkit.rl.features import observation_size
+from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
 
@@ -117,7 +118,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     Parameters
     ----------
     policies : sequence of GainPolicy
-        One or more policies of one recipe (training seeds), trained under one class.
+        One or more policies of one recipe (training seeds), trained under one class; a gain
+        law is moved onto the certificate first (:func:`~teleopkit.rl.law_search.law_under`).
     scenarios : int
         Held-out scenarios.
     seed : int
@@ -131,8 +133,9 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     duration : float
         Episode length in seconds.
     comparators : Comparators, optional
-        Comparators to use; default those stored with the first policy for this setup and
-        certificate, else found now for them.
+        Comparators to use (their open-loop schedule that of the first policy as it runs
+        here, moved onto the certificate if it is a law); default those stored with the first
+        policy for this setup and certificate, else found now for them.
     others : mapping, optional
         More controllers by name, each with its settings (for example a tuner of another
         class).
@@ -155,6 +158,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     for policy in policies:
         check_covers(certificate, policy)
     config = evaluation_config(certificate, setup, delay, duration)
+    policies = [law_under(policy, config) for policy in policies]
     found = comparators or comparators_for(policies[0], certificate, config)
     tuner = replace(config, observation=policy_observation(policies[0]))
     rows = {tuner_label(policies[0], certificate.gain_variation): (

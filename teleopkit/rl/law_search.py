@@ -39,6 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
+from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.files import atomic_write
 from teleopkit.progress import reports_progress
 from teleopkit.rl.env import FlexTeleopConfig
@@ -46,7 +47,8 @@ from teleopkit.rl.evaluation import closed_loop, episode_costs
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.sim.scenarios import Scenario
 
-__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_start", "search_gain_law"]
+__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_start", "law_under",
+           "search_gain_law"]
 
 _LN2 = math.log(2.0)
 
@@ -179,9 +181,81 @@ def law_start(config: FlexTeleopConfig, progress: bool | None = None) -> np.ndar
     certificate = config.safety_certificate()
     layer = layer_for(certificate, config.control_period)
     found = best_static_gains(layer, config=config, progress=progress).gains
-    low, high = (np.asarray(corner, dtype=float) for corner in (certificate.box.lower,
-                                                                 certificate.box.upper))
-    return np.maximum(found, low + 0.01 * (high - low))
+    return np.asarray(certificate.box.lower, dtype=float) + _above(found, certificate)
+
+
+def law_under(policy: GainPolicy, config: FlexTeleopConfig,
+              progress: bool | None = None) -> GainPolicy:
+    """A gain law moved onto the certificate it is to run under.
+
+    A law is searched under one certificate, around its start: the best constant gains of
+    that certificate's set. Under a certificate with another set (a shorter delay bound lets
+    stiffer gains through, for example), the best constant gains move, and a law left around
+    its old start would not use the room the new set gives (or would lean on the room it
+    lost). The law's start moves by as much, per gain, measured on the setup of ``config``:
+    ``start' - low' = (start - low) (best' - low') / (best - low)``, with ``best`` its best
+    constant gains in the set the law was searched under and ``best'`` in the new set (the
+    first a search in a set only: the simulated runs need not be certified by the old
+    certificate, and no gain of them reaches a plant). A law whose start is the best constant
+    gains of this setup in its old set thus starts at the best constant gains of the new set.
+    Its weights are kept. Every gain the moved law asks for is projected by the safety layer
+    of the new certificate, as any tuner's.
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        A policy; one not searched by :func:`search_gain_law` is returned as it is.
+    config : FlexTeleopConfig
+        The setup and the certificate (``config.certificate``) it is to run under.
+    progress : bool, optional
+        Show the two searches on standard error (default: on a terminal only).
+
+    Returns
+    -------
+    GainPolicy
+        ``policy`` itself when the certificate's set is the one it was searched under (no
+        search), else the moved law, whose metadata records the new certificate and start and
+        the gains the move was measured with (``moved``).
+    """
+    from teleopkit.certification.verification import load_certificate
+    from teleopkit.rl.baselines import best_static_gains
+    from teleopkit.safety.factory import layer_for
+
+    if "law_search" not in policy.metadata:
+        return policy
+    searched = load_certificate(json.dumps(policy.metadata["certificate"]))
+    target = config.safety_certificate()
+    if _set_of(searched) == _set_of(target):
+        return policy
+    _log.info("moving the gain law onto the %s certificate for delays up to %s s",
+              target.gain_variation, list(target.delay_bounds))
+    before = best_static_gains(layer_for(searched, config.control_period), config=config,
+                               progress=progress).gains
+    after = best_static_gains(config=config, progress=progress).gains
+    low, low_after = (np.asarray(c.box.lower, dtype=float) for c in (searched, target))
+    start = policy.low + policy.span * _LN2
+    ratio = _above(after, target) / _above(before, searched)
+    moved = low_after + (start - low) * ratio
+    metadata = {**policy.metadata, "certificate": target.to_dict(), "start": moved.tolist(),
+                "moved": {"start": start.tolist(), "certificate": searched.to_dict(),
+                          "setup": config.setup.fingerprint, "best_static": before.tolist(),
+                          "best_static_after": after.tolist()}}
+    return GainPolicy(policy.weights, policy.obs_mean, policy.obs_std, low_after,
+                      (moved - low_after) / _LN2, metadata, policy.obs_range)
+
+
+def _set_of(certificate: GainCertificate) -> str:
+    """What a certificate's safety layer enforces: its class, polytope and scheduled set."""
+    data = certificate.to_dict()
+    return json.dumps([data["gain_variation"], data["polytope"],
+                       (data.get("details") or {}).get("set")], sort_keys=True)
+
+
+def _above(gains: np.ndarray, certificate: GainCertificate) -> np.ndarray:
+    """How far gains lie above the box's lower corner, at least 1 % of its range."""
+    low, high = (np.asarray(c, dtype=float) for c in (certificate.box.lower,
+                                                       certificate.box.upper))
+    return np.maximum(gains - low, 0.01 * (high - low))
 
 
 class _Laws:

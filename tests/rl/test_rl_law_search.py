@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from teleopkit.certification.certifier import default_certificate
-from teleopkit.rl.baselines import static_cost
+from teleopkit.rl.baselines import best_static_gains, static_cost
+from teleopkit.rl.comparison import REFERENCE, compare
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import closed_loop
 from teleopkit.rl.law_search import (
@@ -15,10 +18,12 @@ from teleopkit.rl.law_search import (
     _Laws,
     _Seen,
     law_features,
+    law_under,
     search_gain_law,
 )
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.safety.factory import layer_for
+from teleopkit.setup import Setup
 
 START = np.array([3.4, 7.4, 8.6, 18.5])  # about the paper's best constant gains
 SHORT = FlexTeleopConfig(observation="adaptive", episode_length=4.0)
@@ -113,3 +118,59 @@ def test_bad_settings_are_refused(settings, message):
 def test_a_start_on_the_box_floor_is_refused():
     with pytest.raises(ValueError, match="above the box's lower corner"):
         search_gain_law(np.array([1.0, 7.4, 8.6, 18.5]), SMALL, SHORT, progress=False)
+
+
+SHORTER = Setup.paper().with_delay("constant:0.3")
+NEAR = FlexTeleopConfig(SHORTER, default_certificate(SHORTER.params, (0.3, 0.3)),
+                        observation="adaptive", episode_length=4.0)
+
+
+def _still_law(start: np.ndarray, certificate) -> GainPolicy:
+    """A law with zero weights (it plays its start), searched under ``certificate``."""
+    low = np.asarray(certificate.box.lower, dtype=float)
+    metadata = {"law_search": {}, "certificate": certificate.to_dict(), "start": start.tolist(),
+                "observation": "adaptive"}
+    return GainPolicy([(np.zeros((4, 23)), np.zeros(4))], np.zeros(23), np.ones(23), low,
+                      (start - low) / np.log(2.0), metadata)
+
+
+@pytest.fixture(scope="module")
+def moved():
+    """A still law at the best constant gains of the 1 s set for 0.3 s delays, moved to 0.3 s."""
+    searched_under = SHORT.safety_certificate()
+    start = best_static_gains(layer_for(searched_under), config=NEAR, progress=False).gains
+    law = _still_law(start, searched_under)
+    return law, law_under(law, NEAR, progress=False)
+
+
+def test_a_law_under_the_set_it_was_searched_in_is_left_as_it_is(searched):
+    law = searched[0].policy
+    assert law_under(law, SHORT) is law
+    same_set = replace(SHORT, episode_length=2.0)  # another question, the same certificate
+    assert law_under(law, same_set) is law
+    tuner = GainPolicy(law.weights, law.obs_mean, law.obs_std, law.low, law.span,
+                       {"certificate": SHORT.safety_certificate().to_dict()})
+    assert law_under(tuner, NEAR) is tuner  # not a law: nothing to move
+
+
+def test_a_law_moved_onto_a_wider_set_starts_at_its_best_constant_gains(moved):
+    law, there = moved
+    after = best_static_gains(config=NEAR, progress=False).gains
+    before = law.metadata["start"]
+    assert after[0] > 2 * before[0]  # the 0.3 s set lets the stiffness double
+    obs = np.random.default_rng(2).normal(size=(3, 23))
+    np.testing.assert_allclose(there(obs), np.tile(after, (3, 1)), rtol=1e-9)
+    assert there.metadata["start"] == pytest.approx(after.tolist(), rel=1e-9)
+    assert there.metadata["certificate"] == NEAR.safety_certificate().to_dict()
+    assert there.metadata["moved"]["best_static"] == pytest.approx(before, rel=1e-12)
+    assert law_under(there, NEAR) is there  # moved once, for good
+
+
+def test_a_comparison_runs_a_law_moved_onto_its_certificate(moved):
+    law, _ = moved
+    table = compare([law], 3, certificate=NEAR.safety_certificate(), setup=SHORTER,
+                    duration=4.0, progress=False)
+    cost = table.groupby("controller")["cost"].mean()
+    # the still law moved onto the 0.3 s set plays that set's best constant gains
+    assert cost["gain law (frozen)"] == pytest.approx(cost[REFERENCE], rel=1e-9)
+    assert (table["unsafe_actions"] == 0).all()
