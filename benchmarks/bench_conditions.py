@@ -10,7 +10,9 @@ way. For each family and tuner it runs ``compare``: the tuner, the best constant
 frozen class on its certificate's box (``best static``, the reference), those of the tuner's
 class, the tuned semi-active law and the tuner's own mean schedule replayed open loop, all
 searched for that family on its training scenarios (never on the held-out ones), on the same
-held-out scenarios. It prints, per family and tuner, the mean cost and the paired differences
+held-out scenarios. A gain law runs moved onto the family's certificate where that set differs
+from the one it was searched under (:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s
+delays). It prints, per family and tuner, the mean cost and the paired differences
 (per scenario, mean and standard error) against the family's best static gains of both classes
 and the tuner's open-loop schedule, with the cost split into the first 2 s and the rest, and
 writes ``per_scenario.csv`` and ``summary.csv`` to ``--out``.

@@ -234,7 +234,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     and the comparators of the policies' own class (best static gains, the tuned semi-active
     damping law, the tuner's open-loop mean schedule) are searched for this setup and
     certificate (a few minutes; reused from the policy file or the cache when they were
-    searched for the same question).
+    searched for the same question). A gain law evaluated under a certificate with another
+    set than the one it was searched under is moved onto it first: its start moves as the
+    best constant gains of the setup move between the two sets (two searches, about a minute).
     """
     from teleopkit.rl.comparison import (
         REFERENCE,

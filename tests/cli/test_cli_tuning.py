@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from law_helpers import still_law
 
 from teleopkit.certification import certify_gains
 from teleopkit.certification.certifier import default_certificate
@@ -141,3 +142,27 @@ def test_evaluate_runs_unseen_delay_shapes_under_the_policy_certificate(tmp_path
     # the same comparators (the cached schedule is stored to 6 decimals)
     assert list(cached.index) == list(summary.index)
     np.testing.assert_allclose(cached["cost"], summary["cost"], rtol=1e-5)
+
+
+def test_evaluate_moves_a_law_onto_a_certificate_with_another_set(tmp_path):
+    from teleopkit.rl.baselines import best_static_gains
+    from teleopkit.rl.comparison import evaluation_config
+    from teleopkit.safety.factory import layer_for
+
+    wide, near = (default_certificate(paper_setup(), (bound, bound), "tank:3")
+                  for bound in (1.0, 0.3))
+    config = evaluation_config(near, delay="constant:0.3", duration=4.0)
+    start = best_static_gains(layer_for(wide), config=config, progress=False).gains
+    assert not np.allclose(start, best_static_gains(config=config, progress=False).gains)
+    path, certificate = tmp_path / "law.npz", tmp_path / "near.json"
+    still_law(start, wide).save(path)
+    certificate.write_text(near.to_json())
+    done = teleopkit("evaluate", "--policy", str(path), "--certificate", str(certificate),
+                     "--delay", "constant:0.3", "--scenarios", "2", "--duration", "4",
+                     "--out", str(tmp_path / "report"))
+    assert done.returncode == 0, done.stderr
+    cost = pd.read_csv(tmp_path / "report" / "summary.csv", index_col=0)["cost"]
+    # the law at the best constant gains of its old set plays those of the new set, and so
+    # does its open-loop schedule: the comparators were found for the law as it runs here
+    for row in ("best static (tank:3)", "open-loop (tank:3)"):
+        assert cost["gain law (tank:3)"] == pytest.approx(cost[row], rel=1e-9)

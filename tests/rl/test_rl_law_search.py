@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
+from law_helpers import still_law
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import best_static_gains, static_cost
@@ -125,21 +126,12 @@ NEAR = FlexTeleopConfig(SHORTER, default_certificate(SHORTER.params, (0.3, 0.3))
                         observation="adaptive", episode_length=4.0)
 
 
-def _still_law(start: np.ndarray, certificate) -> GainPolicy:
-    """A law with zero weights (it plays its start), searched under ``certificate``."""
-    low = np.asarray(certificate.box.lower, dtype=float)
-    metadata = {"law_search": {}, "certificate": certificate.to_dict(), "start": start.tolist(),
-                "observation": "adaptive"}
-    return GainPolicy([(np.zeros((4, 23)), np.zeros(4))], np.zeros(23), np.ones(23), low,
-                      (start - low) / np.log(2.0), metadata)
-
-
 @pytest.fixture(scope="module")
 def moved():
     """A still law at the best constant gains of the 1 s set for 0.3 s delays, moved to 0.3 s."""
     searched_under = SHORT.safety_certificate()
     start = best_static_gains(layer_for(searched_under), config=NEAR, progress=False).gains
-    law = _still_law(start, searched_under)
+    law = still_law(start, searched_under)
     return law, law_under(law, NEAR, progress=False)
 
 
