@@ -2,10 +2,11 @@
 
 A trained policy records the certificate it was trained under (:func:`policy_certificate`); it
 is evaluated under that certificate unless another one that covers its class is given
-(:func:`check_covers`). Beside it, on the same held-out scenarios, run its comparators
-(:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the reference of every
-table, and of the tuner's class, the tuned semi-active law, the tuner's open-loop schedule, the
-paper's fixed gains), searched for the setup being evaluated.
+(:func:`check_covers`; a gain law is then moved onto that certificate's set,
+:func:`~teleopkit.rl.law_search.law_under`). Beside it, on the same held-out scenarios, run
+its comparators (:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the
+reference of every table, and of the tuner's class, the tuned semi-active law, the tuner's
+open-loop schedule, the paper's fixed gains), searched for the setup being evaluated.
 """
 
 from __future__ import annotations

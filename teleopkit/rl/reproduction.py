@@ -32,6 +32,7 @@ from teleopkit.rl.comparison import (
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
+from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, PRETRAINED_LAW, GainPolicy
 from teleopkit.setup import Setup
 
@@ -96,7 +97,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
     certificate = policy_certificate(covered)
     config = evaluation_config(certificate, setup)
     comparators = comparators_for(covered, certificate, config)
-    law = GainPolicy.pretrained(PRETRAINED_LAW)
+    law = law_under(GainPolicy.pretrained(PRETRAINED_LAW), config)
     law_row = tuner_label(law, certificate.gain_variation)
     per_scenario = compare([covered], scenarios, seed, certificate, comparators=comparators,
                            others={PAPER_TUNER: (paper, replace(config, certificate=None)),
