@@ -185,6 +185,12 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     return pd.concat(frames, ignore_index=True), rows
 
 
+def _name(policy: str) -> str:
+    """A policy's row name: a shipped name as it is, a file by its folder and stem."""
+    path = Path(policy)
+    return f"{path.parent.name}/{path.stem}" if path.suffix else policy
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--policies", nargs="+", default=["covered"],
@@ -195,7 +201,10 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
-    tuners = {Path(p).stem if Path(p).suffix else p: GainPolicy.load(p) for p in args.policies}
+    labels = [_name(p) for p in args.policies]
+    if len(set(labels)) < len(labels):
+        parser.error(f"two policies would share a row name: {labels}")
+    tuners = {label: GainPolicy.load(p) for label, p in zip(labels, args.policies, strict=True)}
     chosen = families(args.out)
     names = args.families or list(chosen)
     frames, rows = [], []
