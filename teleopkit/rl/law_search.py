@@ -217,13 +217,13 @@ def law_under(policy: GainPolicy, config: FlexTeleopConfig,
         search), else the moved law, whose metadata records the new certificate and start and
         the gains the move was measured with (``moved``).
     """
-    from teleopkit.certification.verification import load_certificate
     from teleopkit.rl.baselines import best_static_gains
+    from teleopkit.rl.comparison import policy_certificate  # it imports this module
     from teleopkit.safety.factory import layer_for
 
     if "law_search" not in policy.metadata:
         return policy
-    searched = load_certificate(json.dumps(policy.metadata["certificate"]))
+    searched = policy_certificate(policy)
     target = config.safety_certificate()
     if _set_of(searched) == _set_of(target):
         return policy
@@ -232,10 +232,9 @@ def law_under(policy: GainPolicy, config: FlexTeleopConfig,
     before = best_static_gains(layer_for(searched, config.control_period), config=config,
                                progress=progress).gains
     after = best_static_gains(config=config, progress=progress).gains
-    low, low_after = (np.asarray(c.box.lower, dtype=float) for c in (searched, target))
+    low_after = np.asarray(target.box.lower, dtype=float)
     start = policy.low + policy.span * _LN2
-    ratio = _above(after, target) / _above(before, searched)
-    moved = low_after + (start - low) * ratio
+    moved = low_after + policy.span * _LN2 * _above(after, target) / _above(before, searched)
     metadata = {**policy.metadata, "certificate": target.to_dict(), "start": moved.tolist(),
                 "moved": {"start": start.tolist(), "certificate": searched.to_dict(),
                           "setup": config.setup.fingerprint, "best_static": before.tolist(),
