@@ -246,6 +246,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         evaluation_config,
         policy_certificate,
         report_preamble,
+        schedule_label,
         tuner_label,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
@@ -284,7 +285,8 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                                               + config.setup.network.backward.profiles))
     preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(policies),
                                duration, setup=config.setup)
-    summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner)
+    summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner,
+                          schedule=schedule_label(chosen.gain_variation))
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")

@@ -50,12 +50,29 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "comparators_for", "evaluation_config",
-           "frozen_counterpart", "policy_observation", "tuner_controller", "tuner_label"]
+           "frozen_counterpart", "policy_observation", "schedule_label", "tuner_controller",
+           "tuner_label"]
 
 _log = logging.getLogger(__name__)
 
 REFERENCE = "best static"
 """Name of the reference row: the best static gains of the frozen class."""
+
+
+def schedule_label(variation: str) -> str:
+    """Name of the row of a tuner's own open-loop mean schedule under a class.
+
+    Parameters
+    ----------
+    variation : str
+        The tuner's gain-variation class (``"tank:3"``, ...).
+
+    Returns
+    -------
+    str
+        ``"open-loop (<class>)"``.
+    """
+    return f"open-loop ({variation})"
 
 
 def frozen_counterpart(certificate: GainCertificate, params: TeleoperatorParams
@@ -344,7 +361,7 @@ class Comparators:
             if self.semi_active is not None:
                 rows["semi-active" + label] = (SemiActiveDamping(*self.semi_active), config)
             if self.schedule is not None:
-                rows["open-loop" + label] = (GainSchedule(self.schedule), config)
+                rows[schedule_label(self.certificate)] = (GainSchedule(self.schedule), config)
         rows["fixed"] = (ConstantGains(fixed_gains(n_joints=config.params.n_joints)), frozen)
         return rows
 

@@ -30,6 +30,7 @@ from teleopkit.rl.comparators import (
     evaluation_config,
     frozen_counterpart,
     policy_observation,
+    schedule_label,
     tuner_controller,
     tuner_label,
 )
@@ -42,7 +43,7 @@ from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
-           "report_preamble", "tuner_controller", "tuner_label"]
+           "report_preamble", "schedule_label", "tuner_controller", "tuner_label"]
 
 _log = logging.getLogger(__name__)
 
@@ -229,8 +230,9 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
                       f"gains ({_gains(comparators.class_static)}); `semi-active ({label})` a "
                       "hand-written law, high damping while the spring deflection grows and low "
                       "while it shrinks at a constant stiffness, its three numbers tuned on "
-                      f"training scenarios; `open-loop ({label})` the tuner's mean gain schedule "
-                      "over 16 training scenarios, replayed as a function of time alone."]
+                      f"training scenarios; `{schedule_label(label)}` the tuner's mean gain "
+                      "schedule over 16 training scenarios, replayed as a function of time "
+                      "alone."]
     if setup is not None:
         lines += ["", "Setup (every comparator was searched for it, on training scenarios "
                       f"drawn from it): {'; '.join(setup.describe())}."]

@@ -43,6 +43,7 @@ __all__ = [
     "Controller",
     "Rollout",
     "closed_loop",
+    "cost_ratio",
     "episode_costs",
     "evaluate",
     "findings",
@@ -420,14 +421,51 @@ def _paired(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[float,
     return float(relative), float(difference.mean()), float(error)
 
 
+def cost_ratio(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[float, float]:
+    """Mean over the scenarios of ``cost(first) / cost(second) - 1``, and its standard error.
+
+    Every scenario weighs the same, however costly: the mean cost is led by the dearest runs
+    (a start far from the operator can cost ten times the paper's), this ratio by the typical.
+
+    Parameters
+    ----------
+    per_scenario : pandas.DataFrame
+        Output of :func:`evaluate` with both rows (per-policy costs averaged per scenario).
+    first, second : str
+        The rows compared.
+
+    Returns
+    -------
+    tuple of float
+        The mean relative change and its standard error (fractions; NaN error for one
+        scenario).
+    """
+    cost = per_scenario.groupby(["controller", "scenario"], sort=False)["cost"].mean()
+    ratio = (cost.loc[first] / cost.loc[second]).dropna()
+    return float(ratio.mean() - 1), float(ratio.std(ddof=1) / np.sqrt(len(ratio)))
+
+
+def _against(per_scenario: pd.DataFrame, tuner: str, other: str) -> str:
+    """The tuner against another row: mean cost, paired difference, mean ratio, verdict."""
+    relative, mean, error = _paired(per_scenario, tuner, other)
+    ratio, ratio_error = cost_ratio(per_scenario, tuner, other)
+    verdict = ("no measurable difference on these scenarios" if abs(mean) <= 2 * error
+               else "cheaper" if mean < 0 else "dearer")
+    return (f"{100 * relative:+.1f} % cost (paired over the scenarios: {mean:+.4g} "
+            f"± {error:.2g} per scenario, mean ± standard error; scenario by scenario "
+            f"{100 * ratio:+.1f} ± {100 * ratio_error:.1f} % on average), {verdict}")
+
+
 def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
-             baseline: str) -> str:
+             baseline: str, schedule: str | None = None) -> str:
     """What the table says of the tuner, in words: against the strongest covered alternative.
 
     The rows covered by their certificate are ranked by mean cost. The tuner is compared with
     the cheapest other covered row, paired scenario by scenario: a mean difference within twice
-    its standard error is reported as no measurable difference. Cheaper rows that their
-    certificate does not cover are named as such.
+    its standard error is reported as no measurable difference; the mean over the scenarios of
+    the ratio of costs follows (every scenario weighed the same). Then the same against the
+    tuner's own open-loop schedule, when it has a row: whether its feedback pays over its mean
+    gains replayed blind. Cheaper rows that their certificate does not cover are named as such.
 
     Parameters
     ----------
@@ -439,6 +477,8 @@ def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
         The tuner's row.
     baseline : str
         The row costs are compared with in percent.
+    schedule : str, optional
+        The row of the tuner's open-loop mean schedule, if any.
 
     Returns
     -------
@@ -455,12 +495,12 @@ def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
     rivals = [name for name in covered.index if name != tuner]
     if summary.loc[tuner, "covered"] and rivals:
         rival = str(rivals[0])
-        relative, mean, error = _paired(per_scenario, tuner, rival)
-        verdict = ("no measurable difference on these scenarios" if abs(mean) <= 2 * error
-                   else "cheaper" if mean < 0 else "dearer")
         lines.append(f"`{tuner}` against the strongest other covered row, `{rival}`: "
-                     f"{100 * relative:+.1f} % cost (paired over the scenarios: {mean:+.4g} "
-                     f"± {error:.2g} per scenario, mean ± standard error), {verdict}.")
+                     f"{_against(per_scenario, tuner, rival)}.")
+        if schedule is not None and schedule != rival and schedule in summary.index:
+            lines.append(f"Against its own open-loop schedule, `{schedule}` (its feedback "
+                         f"against its mean gains replayed blind): "
+                         f"{_against(per_scenario, tuner, schedule)}.")
     elif not summary.loc[tuner, "covered"]:
         lines.append(f"`{tuner}` is not covered by its certificate.")
     cheaper = [str(name) for name in summary.index
@@ -475,7 +515,7 @@ def findings(summary: pd.DataFrame, per_scenario: pd.DataFrame, tuner: str,
 
 def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
                 baseline: str | None = None, preamble: str = "",
-                tuner: str | None = None) -> pd.DataFrame:
+                tuner: str | None = None, schedule: str | None = None) -> pd.DataFrame:
     """Write ``per_scenario.csv``, ``summary.csv`` and ``summary.md`` to ``out_dir``.
 
     Parameters
@@ -490,6 +530,8 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
         Markdown that ``summary.md`` opens with (what was compared, what the words mean).
     tuner : str, optional
         The tuner's row: ``summary.md`` then ends with :func:`findings` (needs ``baseline``).
+    schedule : str, optional
+        The row of the tuner's open-loop mean schedule, for :func:`findings`.
 
     Returns
     -------
@@ -503,6 +545,6 @@ def save_report(per_scenario: pd.DataFrame, out_dir: str | Path,
     summary.to_csv(directory / "summary.csv")
     table = to_markdown(summary, baseline=baseline)
     if tuner is not None and baseline is not None:
-        table += "\n" + findings(summary, per_scenario, tuner, baseline)
+        table += "\n" + findings(summary, per_scenario, tuner, baseline, schedule)
     (directory / "summary.md").write_text(f"{preamble}\n{table}" if preamble else table)
     return summary

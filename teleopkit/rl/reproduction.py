@@ -27,6 +27,7 @@ from teleopkit.rl.comparison import (
     policy_certificate,
     policy_observation,
     report_preamble,
+    schedule_label,
     tuner_controller,
     tuner_label,
 )
@@ -125,7 +126,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
                  "fourteen condition families, and `teleopkit evaluate --policy law --setup FILE` "
                  "on your own setup.\n")
     summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble,
-                          tuner=tuner)
+                          tuner=tuner, schedule=schedule_label(certificate.gain_variation))
     _log.info("reproduction: running the episodes of the figures")
     frozen = replace(config, certificate=None)
     played = replace(config, observation=policy_observation(covered))

@@ -131,6 +131,9 @@ def test_evaluate_runs_unseen_delay_shapes_under_the_policy_certificate(tmp_path
         "frozen"
     assert {"semi-active (tank:3)", "open-loop (tank:3)"} <= set(summary.index)
     assert summary["covered"].all() and summary["unsafe_actions"].sum() == 0
+    reading = (tmp_path / "report" / "summary.md").read_text()  # the tuner set against its
+    assert any(f"{words}, `open-loop (tank:3)`" in reading  # schedule, as rival or after it
+               for words in ("strongest other covered row", "Against its own open-loop schedule"))
     # searched for this delay shape and episode length, not reused from the paper's setup
     assert "finding the comparators" in done.stderr
     with resources.as_file(resources.files("teleopkit") / "data" / PRETRAINED_COVERED) as path:

@@ -16,6 +16,7 @@ from teleopkit.rl.evaluation import (
     closed_loop,
     episode_costs,
     evaluate,
+    cost_ratio,
     findings,
     rollout,
     save_report,
@@ -178,6 +179,26 @@ def test_findings_compare_the_tuner_with_the_strongest_covered_row():
     per = _table({"TD3": (list(base - 500), True), "best static": (list(base), True)})
     text = findings(summarise(per), per, "TD3", "best static")
     assert "`TD3` costs least (-" in text and "`best static`: -" in text and "cheaper" in text
+
+
+def test_cost_ratio_weighs_every_scenario_the_same():
+    per = _table({"law": ([1.0, 100.0, 30.0], True), "schedule": ([2.0, 100.0, 20.0], True)})
+    mean, error = cost_ratio(per, "law", "schedule")
+    ratios = np.array([0.5, 1.0, 1.5])
+    assert mean == pytest.approx(ratios.mean() - 1)  # 0, while the mean costs differ by +7 %
+    assert error == pytest.approx(ratios.std(ddof=1) / np.sqrt(3))
+
+
+def test_findings_set_the_tuner_against_its_own_schedule():
+    rng = np.random.default_rng(5)
+    base = rng.uniform(8000, 12000, 32)
+    per = _table({"law": (list(0.9 * base), True), "best static": (list(0.8 * base), True),
+                  "schedule": (list(base), True)})
+    text = findings(summarise(per), per, "law", "best static", schedule="schedule")
+    assert "strongest other covered row, `best static`: +12.5 % cost" in text
+    assert "Against its own open-loop schedule, `schedule`" in text
+    assert "scenario by scenario -10.0 ± 0.0 % on average), cheaper." in text
+    assert "open-loop schedule" not in findings(summarise(per), per, "law", "best static")
 
 
 def test_findings_say_when_the_tuner_is_not_covered(tmp_path):
