@@ -3,6 +3,7 @@
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
         [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16 ...]
         [--learning-rates 1e-3 ...] [--n-steps 1 ...] [--critic-actions applied raw]
+        [--setup paper|mixed|FILE] [--observation paper|adaptive] [--below 0.1]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
@@ -14,10 +15,13 @@ observations standardised with statistics frozen from the warm-up, the paper's n
 Gaussian exploration of 4 gain units, the discount given. After every round (one 40 s episode of
 every scenario) the deterministic actor is validated on the recipe's 16 validation scenarios; a
 run stops at the first round whose validation cost is 10 % below that of the best static gains of
-the frozen class there. Printed per trainer, setting and seed: that round, the wall-clock time to
-it (training and validations; the static gains' search is excluded and printed apart) and where
-that time went: the simulator, the safety layer's projection, the gradient updates (SB3: its
-``train`` calls, sampling included) and the validations.
+the frozen class there (``--below``: the fraction below them; ``--setup`` and ``--observation``
+race on another setup, for example the adaptive tuner's ``--setup mixed --observation
+adaptive``, the static gains searched for it). Printed per trainer, setting and seed: that
+round, the wall-clock time to it (training and validations; the static gains' search is
+excluded and printed apart) and where that time went: the simulator, the safety layer's
+projection, the gradient updates (SB3: its ``train`` calls, sampling included) and the
+validations.
 
 What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
 the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
@@ -29,6 +33,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -47,6 +52,7 @@ from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorE
 from teleopkit.rl.evaluation import rollout
 from teleopkit.rl.td3 import TD3Config
 from teleopkit.rl.training import TrainConfig, train
+from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
 
 RECIPE = TrainConfig()
 REWARD_SCALE = RECIPE.td3.reward_scale
@@ -235,16 +241,24 @@ def main() -> None:
     parser.add_argument("--critic-actions", nargs="+", default=[RECIPE.td3.critic_action],
                         choices=["applied", "raw"],
                         help="what teleopkit's critics value (TD3Config.critic_action)")
+    parser.add_argument("--setup", default="paper", help="a shipped setup name or a file")
+    parser.add_argument("--observation", default="paper", choices=["paper", "adaptive"])
+    parser.add_argument("--below", type=float, default=0.1,
+                        help="target: this fraction below the frozen best static gains' cost")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
-    static = best_static_gains().gains
+    path = shipped_setup_path(args.setup) if args.setup in SHIPPED_SETUPS else Path(args.setup)
+    setup = Setup.from_file(path)
+    frozen_config = FlexTeleopConfig(setup)
+    static = best_static_gains(config=frozen_config).gains
     frozen = rollout(ConstantGains(static), RECIPE.validation_scenarios, RECIPE.validation_seed,
-                     FlexTeleopConfig())
-    target = 0.9 * float(-frozen.reward.sum(axis=0).mean())
+                     frozen_config)
+    target = (1 - args.below) * float(-frozen.reward.sum(axis=0).mean())
     print(f"target validation cost {target:.0f} (frozen best static gains "
           f"{static.round(3).tolist()}, found in {time.perf_counter() - start:.0f} s)")
-    config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
+    certificate = default_certificate(setup.params, setup.network.reached_bounds, COVERING_CLASS)
+    config = FlexTeleopConfig(setup, certificate, observation=args.observation)
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
     print("\n| trainer | envs | n-step | critic values | discount | learning rate | seed | round "
           "| validation cost | time to it [s] | simulation | projection | updates | validation |")

@@ -14,9 +14,9 @@ from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import (
     SUMMARY_METRICS,
     closed_loop,
+    cost_ratio,
     episode_costs,
     evaluate,
-    cost_ratio,
     findings,
     rollout,
     save_report,
