@@ -42,9 +42,10 @@ from teleopkit.rl.comparison import (
     compare,
     evaluation_config,
     policy_certificate,
+    schedule_label,
     tuner_label,
 )
-from teleopkit.rl.evaluation import cost_ratio
+from teleopkit.rl.evaluation import cost_ratio, paired_difference
 from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import MotionSpec, Network, Setup, StartSpec
@@ -177,16 +178,6 @@ def families(folder: Path) -> dict[str, Setup]:
     }
 
 
-def _paired(table: pd.DataFrame, tuner: str, other: str, column: str) -> tuple[float, float]:
-    """Mean and standard error of ``tuner - other`` over the scenarios, in % of ``other``."""
-    a = table[table["controller"] == tuner].groupby("scenario")[column].mean()
-    b = table[table["controller"] == other].groupby("scenario")[column].mean()
-    diff = (a - b).dropna()
-    scale = float(b.mean())
-    return (100 * float(diff.mean()) / scale,
-            100 * float(diff.std(ddof=1)) / math.sqrt(len(diff)) / scale)
-
-
 def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios: int,
                ) -> tuple[pd.DataFrame, list[dict[str, object]]]:
     """Every tuner on one family: per-scenario rows and the summary rows."""
@@ -210,10 +201,12 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
                                   "best static": mean.loc[REFERENCE, "cost"]}
         for other, short in ((REFERENCE, "vs static"),
                              (f"best static ({variation})", "vs class static"),
-                             (f"open-loop ({variation})", "vs open loop")):
+                             (schedule_label(variation), "vs open loop")):
             if other in mean.index:
-                row[short], row[short + " se"] = _paired(table, label, other, "cost")
+                relative, _, error = paired_difference(table, label, other)
                 ratio = cost_ratio(table, label, other)
+                scale = mean.loc[other, "cost"]
+                row[short], row[short + " se"] = 100 * relative, 100 * error / scale
                 row[short + " per scenario"], row[short + " per scenario se"] = (
                     100 * ratio[0], 100 * ratio[1])
         row["opening saved"] = mean.loc[REFERENCE, "cost_opening"] - mean.loc[label, "cost_opening"]

@@ -24,7 +24,7 @@ import numpy as np
 from bench_conditions import families
 
 from teleopkit.certification.certifier import default_certificate
-from teleopkit.rl.baselines import static_cost
+from teleopkit.rl.baselines import static_cost, uniform_gain_grid
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED
 from teleopkit.safety.factory import layer_for
@@ -40,12 +40,7 @@ def hindsight(setup: Setup, points: int, scenarios: int) -> tuple[float, float, 
     certificate = default_certificate(setup.params, setup.network.reached_bounds, "frozen")
     config = FlexTeleopConfig(setup, certificate)
     layer = layer_for(certificate, config.control_period)
-    low, high = (np.asarray(c, dtype=float) for c in (certificate.box.lower,
-                                                      certificate.box.upper))
-    n = setup.n_joints
-    k, b = np.meshgrid(np.linspace(low[0], high[0], points), np.linspace(low[n], high[n], points))
-    raw = np.column_stack([np.repeat(k.reshape(-1, 1), n, 1), np.repeat(b.reshape(-1, 1), n, 1)])
-    candidates = np.unique(layer.project_set(raw).round(12), axis=0)
+    candidates = uniform_gain_grid(layer, certificate.box.lower, certificate.box.upper, points)
     costs = static_cost(candidates, setup.scenarios(np.random.default_rng(EVAL_SEED), scenarios),
                         config)
     best = int(np.argmin(costs.mean(axis=1)))

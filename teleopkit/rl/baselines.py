@@ -44,6 +44,7 @@ __all__ = [
     "best_static_gains",
     "fixed_gains",
     "static_cost",
+    "uniform_gain_grid",
 ]
 
 _log = logging.getLogger(__name__)
@@ -141,8 +142,24 @@ class StaticGains:
     evaluations: int
 
 
-def _grid(layer: SafetyLayer, lower: np.ndarray, upper: np.ndarray, points: int) -> np.ndarray:
-    """Uniform gains on a ``points x points`` grid of the box, projected, duplicates removed."""
+def uniform_gain_grid(layer: SafetyLayer, lower: np.ndarray, upper: np.ndarray,
+                      points: int) -> np.ndarray:
+    """Uniform gains (one ``K_r``, one ``B_r`` on every joint) on a grid, inside the set.
+
+    Parameters
+    ----------
+    layer : SafetyLayer
+        Its set receives the grid (:meth:`project_set`).
+    lower, upper : array_like, shape (2 n,)
+        Corners of the gain box; the grid spans the first joint's ``K_r`` and ``B_r`` ranges.
+    points : int
+        Grid points per gain.
+
+    Returns
+    -------
+    ndarray, shape (C, 2 n)
+        The ``points x points`` grid projected onto the set, duplicates removed.
+    """
     n = layer.dimension // 2
     k = np.linspace(lower[0], upper[0], points)
     b = np.linspace(lower[n], upper[n], points)
@@ -189,7 +206,7 @@ def best_static_gains(layer: SafetyLayer | None = None, scenarios: int = 16,
         layer = layer_for(certificate, config.control_period)
     box = certificate.box
     scenario = config.setup.scenarios(seed, scenarios)
-    candidates = _grid(layer, box.lower, box.upper, grid_points)
+    candidates = uniform_gain_grid(layer, box.lower, box.upper, grid_points)
     _log.info("best static gains: simulating %d grid candidates", len(candidates))
     grid_costs = static_cost(candidates, scenario, config).mean(axis=1)
     start = candidates[int(np.argmin(grid_costs))]

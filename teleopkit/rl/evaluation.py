@@ -47,6 +47,7 @@ __all__ = [
     "episode_costs",
     "evaluate",
     "findings",
+    "paired_difference",
     "rollout",
     "save_report",
     "summarise",
@@ -408,11 +409,25 @@ def to_markdown(summary: pd.DataFrame, metrics: Sequence[str] = TABLE_METRICS,
     return "\n".join(lines) + "\n"
 
 
-def _paired(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[float, float, float]:
+def paired_difference(per_scenario: pd.DataFrame, first: str,
+                      second: str) -> tuple[float, float, float]:
     """Cost of ``first`` against ``second``: relative change, paired mean difference, its error.
 
     Paired over the scenarios both ran (per-policy costs averaged per scenario); the error is
     the standard error of the mean difference (NaN for one scenario).
+
+    Parameters
+    ----------
+    per_scenario : pandas.DataFrame
+        Output of :func:`evaluate` with both rows.
+    first, second : str
+        The rows compared.
+
+    Returns
+    -------
+    tuple of float
+        The change of the mean cost (a fraction of ``second``'s), the mean per-scenario
+        difference and its standard error (cost units).
     """
     cost = per_scenario.groupby(["controller", "scenario"], sort=False)["cost"].mean()
     difference = (cost.loc[first] - cost.loc[second]).dropna()
@@ -447,7 +462,7 @@ def cost_ratio(per_scenario: pd.DataFrame, first: str, second: str) -> tuple[flo
 
 def _against(per_scenario: pd.DataFrame, tuner: str, other: str) -> str:
     """The tuner against another row: mean cost, paired difference, mean ratio, verdict."""
-    relative, mean, error = _paired(per_scenario, tuner, other)
+    relative, mean, error = paired_difference(per_scenario, tuner, other)
     ratio, ratio_error = cost_ratio(per_scenario, tuner, other)
     verdict = ("no measurable difference in mean cost on these scenarios" if abs(mean) <= 2 * error
                else "cheaper" if mean < 0 else "dearer")
