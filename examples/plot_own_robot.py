@@ -124,6 +124,25 @@ fig.suptitle("Your robot with the recorded hand motion and delay traces")
 fig.tight_layout()
 
 # %%
+# Several plants
+# --------------
+# A tuner meets more than one robot: ``plant`` may be a list of plants, each scenario running
+# one of them (here the robot, the robot carrying a load on its last link, and the robot
+# against a wall its first joint meets at 0.1 rad). The closed form's set depends on the plant
+# only through the local gains, so one certificate covers all three; it records each and is
+# derived again for each when it is read back. An LMI certificate covers one plant only.
+data = setup.to_data(folder)
+loaded = {**data["plant"], "remote_arm": {**data["plant"]["remote_arm"], "masses": [1.2, 0.9]}}
+walled = {**data["plant"], "environment": {"wall": [0.1, float("inf")], "stiffness": 1000}}
+fleet = tk.Setup.from_data({**data, "plant": [data["plant"], loaded, walled]}, folder)
+covering = default_certificate(fleet.params, fleet.network.reached_bounds, COVERING_CLASS,
+                               fleet.plants)
+covering.check(fleet.plants, *fleet.network.reached_bounds)
+batch = fleet.scenarios(0, batch=6)
+print(f"{len(covering.other_plants) + 1} plants under one certificate; the plant of each "
+      f"scenario: {batch.plant_of.tolist()}")
+
+# %%
 # Train
 # -----
 # The environments draw their episodes from the setup: its plant, its two delay traces, its

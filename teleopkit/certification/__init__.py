@@ -31,6 +31,7 @@ _EXPORTS = {
     "methods_for": "methods",
     "certificate_table": "report",
     "check_certificate": "verification",
+    "cover_plants": "verification",
     "load_certificate": "verification",
     "verify_certificate": "verification",
 }

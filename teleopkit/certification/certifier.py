@@ -15,7 +15,7 @@ reused.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from teleopkit.certification.cache import cached
 from teleopkit.certification.gain_certificate import GainCertificate
@@ -24,6 +24,7 @@ from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
 from teleopkit.certification.question import Question
+from teleopkit.certification.verification import cover_plants
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.progress import reports_progress
 
@@ -130,7 +131,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
 
 def default_certificate(params: TeleoperatorParams | None = None,
                         delay_bound: float | tuple[float, float] = 1.0,
-                        variation: GainVariation | str = "frozen") -> GainCertificate:
+                        variation: GainVariation | str = "frozen",
+                        plants: Sequence[TeleoperatorParams] = ()) -> GainCertificate:
     """Closed-form certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
 
     The box itself is not certified (at ``K_r = 50`` it needs ``B_r >= 125`` for 1 s delays);
@@ -146,6 +148,9 @@ def default_certificate(params: TeleoperatorParams | None = None,
     variation : GainVariation or str
         The gain class: ``"frozen"`` by default, or a scheduled class (``"scheduled:L"``,
         ``"tank"``), which covers what a tuner does with the gains.
+    plants : sequence of TeleoperatorParams, optional
+        Further plants to cover (a setup's :attr:`~teleopkit.setup.Setup.plants`):
+        :func:`~teleopkit.certification.verification.cover_plants`.
 
     Returns
     -------
@@ -156,4 +161,6 @@ def default_certificate(params: TeleoperatorParams | None = None,
     box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
     forward, backward = (delay_bound if isinstance(delay_bound, tuple)
                          else (delay_bound, delay_bound))
-    return certify_gains(params, box, forward, backward, method="nuno", variation=variation)
+    certificate = certify_gains(params, box, forward, backward, method="nuno",
+                                variation=variation)
+    return cover_plants(certificate, plants) if plants else certificate

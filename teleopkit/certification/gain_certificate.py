@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
@@ -60,6 +60,10 @@ class GainCertificate:
         The plant certified (:func:`~teleopkit.model.params.plant_record`); read-only.
     delay_lower : tuple of float
         ``(T_l_min, T_r_min)``: the delays certified lie in ``[T_i_min, T_i*]`` (0: from 0).
+    other_plants : tuple of mapping
+        Further plants the same verdict is certified for (a closed-form certificate derived
+        again for each gives the same set:
+        :func:`~teleopkit.certification.verification.cover_plants`); empty for one plant.
     """
 
     certified: bool
@@ -75,6 +79,7 @@ class GainCertificate:
     details: Mapping[str, Any] = field(default_factory=dict)
     plant: Mapping[str, Any] = field(default_factory=dict)
     delay_lower: tuple[float, float] = (0.0, 0.0)
+    other_plants: tuple[Mapping[str, Any], ...] = ()
     _variation: GainVariation = field(init=False, repr=False, compare=False)
     _scheduled: ScheduledSet | None = field(init=False, repr=False, compare=False)
 
@@ -82,6 +87,8 @@ class GainCertificate:
         # a value: its mappings are read-only views of copies
         object.__setattr__(self, "details", MappingProxyType(dict(self.details)))
         object.__setattr__(self, "plant", MappingProxyType(dict(self.plant)))
+        object.__setattr__(self, "other_plants", tuple(MappingProxyType(dict(record))
+                                                       for record in self.other_plants))
         # the parsed forms are computed once, here (a bad class or set fails at construction)
         object.__setattr__(self, "_variation", parse_gain_variation(self.gain_variation))
         data = self.details.get("set")
@@ -126,15 +133,31 @@ class GainCertificate:
         data = self.details.get("storage")
         return None if data is None else ScheduledStorage.from_details(data)
 
-    def check(self, params: TeleoperatorParams, forward_bound: float | None = None,
-              backward_bound: float | None = None,
-              floors: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Refuse the certificate for another plant or for delays outside its bounds.
+    def covers_plant(self, params: TeleoperatorParams) -> bool:
+        """Whether ``params`` is the certified plant or one of :attr:`other_plants`.
 
         Parameters
         ----------
         params : TeleoperatorParams
-            The plant it is to be used on.
+            A plant.
+
+        Returns
+        -------
+        bool
+            True when one of the recorded plants is ``params``.
+        """
+        return any(plant_mismatch(record, params) is None
+                   for record in (self.plant, *self.other_plants))
+
+    def check(self, params: TeleoperatorParams | Sequence[TeleoperatorParams],
+              forward_bound: float | None = None, backward_bound: float | None = None,
+              floors: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Refuse the certificate for a plant it does not cover or for delays outside its bounds.
+
+        Parameters
+        ----------
+        params : TeleoperatorParams or sequence of them
+            The plant (or plants) it is to be used on.
         forward_bound, backward_bound : float, optional
             Declared upper bounds of the delay profiles in use (seconds).
         floors : tuple of float
@@ -148,9 +171,13 @@ class GainCertificate:
         """
         if not self.plant:
             raise ValueError("the certificate names no plant; certify again with this teleopkit")
-        mismatch = plant_mismatch(self.plant, params)
-        if mismatch is not None:
-            raise ValueError(mismatch)
+        for plant in (params,) if isinstance(params, TeleoperatorParams) else params:
+            if not self.covers_plant(plant):
+                mismatch = plant_mismatch(self.plant, plant)
+                raise ValueError(mismatch if not self.other_plants else
+                                 f"the plant is none of the certificate's "
+                                 f"{1 + len(self.other_plants)} plants (against the first: "
+                                 f"{mismatch})")
         for name, bound, certified in (("forward", forward_bound, self.delay_bounds[0]),
                                        ("backward", backward_bound, self.delay_bounds[1])):
             if bound is not None and bound > certified:
@@ -182,6 +209,8 @@ class GainCertificate:
             "details": dict(self.details),
             "plant": dict(self.plant),
             "delay_lower": list(self.delay_lower),
+            **({"other_plants": [dict(record) for record in self.other_plants]}
+               if self.other_plants else {}),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -236,7 +265,8 @@ class GainCertificate:
                 polytope_certified=bool(data["polytope_certified"]),
                 assumptions=tuple(data["assumptions"]), violation=data["violation"],
                 details=dict(data["details"]), plant=dict(data.get("plant", {})),
-                delay_lower=_delay_lower(data.get("delay_lower", (0.0, 0.0))))
+                delay_lower=_delay_lower(data.get("delay_lower", (0.0, 0.0))),
+                other_plants=tuple(dict(record) for record in data.get("other_plants", ())))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
 

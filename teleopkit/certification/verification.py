@@ -15,6 +15,8 @@ a file is used.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -22,9 +24,9 @@ import numpy as np
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.methods import certify_with
 from teleopkit.certification.question import Question
-from teleopkit.model.params import plant_params
+from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
 
-__all__ = ["check_certificate", "load_certificate", "verify_certificate"]
+__all__ = ["check_certificate", "cover_plants", "load_certificate", "verify_certificate"]
 
 
 def _plain(data: Any) -> Any:
@@ -32,9 +34,14 @@ def _plain(data: Any) -> Any:
     return json.loads(json.dumps(data, default=dict))  # read-only views as the dicts they show
 
 
-def _check_closed_form(certificate: GainCertificate) -> None:
-    """Raise unless the closed form re-derives exactly what the certificate states."""
-    derived = certify_with("nuno", Question(plant_params(certificate.plant), certificate.box,
+def _check_closed_form(certificate: GainCertificate,
+                       plant: Mapping[str, Any] | None = None) -> None:
+    """Raise unless the closed form re-derives exactly what the certificate states.
+
+    For ``plant`` (one of its :attr:`~GainCertificate.other_plants`) in place of its first.
+    """
+    record = certificate.plant if plant is None else plant
+    derived = certify_with("nuno", Question(plant_params(record), certificate.box,
                                             certificate.delay_bounds,
                                             variation=certificate.variation))
     for name in ("certified", "polytope_certified", "delay_lower", "assumptions"):
@@ -71,8 +78,12 @@ def check_certificate(certificate: GainCertificate) -> None:
     if certificate.method not in ("nuno", "lmi"):
         raise ValueError(f"unknown certificate method {certificate.method!r}")
     if certificate.method == "nuno":
-        _check_closed_form(certificate)
+        for plant in (None, *certificate.other_plants):
+            _check_closed_form(certificate, plant)
         return
+    if certificate.other_plants:
+        raise ValueError("an LMI certificate is for one plant; certify several with the closed "
+                         "form (method nuno)")
     from teleopkit.certification.lmi.verdict import check_lmi  # cvxpy: only when asked for
 
     check_lmi(certificate)
@@ -121,3 +132,48 @@ def load_certificate(text: str) -> GainCertificate:
     certificate = GainCertificate.from_json(text)
     check_certificate(certificate)
     return certificate
+
+
+def cover_plants(certificate: GainCertificate,
+                 plants: Sequence[TeleoperatorParams]) -> GainCertificate:
+    """The certificate extended to every plant of ``plants``, where its verdict holds for each.
+
+    The closed form's set depends on the plant only through the local gains ``K_l, B_l`` (its
+    storage holds for any elastic-joint arms, passive operator and environment): derived again
+    for each further plant, it must give the same verdict, set and details, else the plants
+    need certificates of their own.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        A closed-form certificate (method ``"nuno"``) for one of the plants.
+    plants : sequence of TeleoperatorParams
+        The plants to cover (for example :attr:`teleopkit.setup.Setup.plants`).
+
+    Returns
+    -------
+    GainCertificate
+        ``certificate`` itself when it covers them already, else a copy recording the others
+        in :attr:`~GainCertificate.other_plants`.
+
+    Raises
+    ------
+    ValueError
+        One line: an LMI certificate for several plants, or a plant the set differs for.
+    """
+    missing = [params for params in plants if not certificate.covers_plant(params)]
+    if not missing:
+        return certificate
+    if certificate.method != "nuno":
+        raise ValueError("an LMI certificate is for one plant; certify several with the closed "
+                         "form (method nuno)")
+    extended = replace(certificate, other_plants=(*certificate.other_plants,
+                                                  *(plant_record(params) for params in missing)))
+    for record in extended.other_plants[len(certificate.other_plants):]:
+        try:
+            _check_closed_form(extended, record)
+        except ValueError:
+            raise ValueError("the closed form certifies another set for one of the plants (its "
+                             "local gains differ): certify each plant on its own") from None
+    return extended
+

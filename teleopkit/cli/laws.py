@@ -89,7 +89,8 @@ def _law_certificate(variation: object, certificate: Path | None,
     network = setup.network
     chosen = (read_certificate(certificate) if certificate is not None else
               default_certificate(setup.params, network.reached_bounds,
-                                  variation or COVERING_CLASS))  # type: ignore[arg-type]
-    chosen.check(setup.params, *network.reached_bounds, network.reached_floors)
+                                  variation or COVERING_CLASS,  # type: ignore[arg-type]
+                                  setup.plants))
+    chosen.check(setup.plants, *network.reached_bounds, network.reached_floors)
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen

@@ -87,7 +87,12 @@ def simulate_command(kr: list[float], br: list[float], duration: float, delay: s
                         title=f"K_r = {kr}, B_r = {br}, delay {spec}{scaled}")
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
-    click.echo(f"wrote {len(trajectory.t)} rows to {out}; RMS tracking error {rms:.4g} rad")
+    which = ""
+    if setup.other_plants:  # the seed drew one of the plants
+        which = (f" (plant {setup.scenarios(seed, 1, delay).plant_of[0] + 1} of "
+                 f"{len(setup.plants)})")
+    click.echo(f"wrote {len(trajectory.t)} rows to {out}{which}; RMS tracking error {rms:.4g} "
+               "rad")
     _warn_beyond_margin(setup, action, float(trajectory.delays.max()))
 
 
@@ -109,7 +114,7 @@ def _warn_beyond_margin(setup: Setup, gains: np.ndarray, longest: float) -> None
     """
     from teleopkit.certification.nuno.condition import nuno_joint_margins
 
-    margin = float(nuno_joint_margins(setup.params, gains).min())
+    margin = min(float(nuno_joint_margins(params, gains).min()) for params in setup.plants)
     if longest > margin:
         click.echo(f"warning: the delays reached {longest:.4g} s; these gains are certified "
                    f"(closed form, constant gains) for delays up to {margin:.4g} s only, so this "

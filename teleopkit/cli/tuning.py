@@ -135,8 +135,8 @@ def _training_certificate(out: Path, resume: bool, variation: object,
     if certificate is not None:
         chosen = read_certificate(certificate)
     elif variation is not None or not (resume and (out / CERTIFICATE).is_file()):
-        chosen = default_certificate(config.params, bounds,
-                                     variation or COVERING_CLASS)  # type: ignore[arg-type]
+        chosen = default_certificate(config.params, bounds, variation or COVERING_CLASS,
+                                     config.setup.plants)  # type: ignore[arg-type]
     else:
         chosen = read_certificate(out / CERTIFICATE)
     _check_certificate(chosen, config)
@@ -147,7 +147,7 @@ def _training_certificate(out: Path, resume: bool, variation: object,
 def _check_certificate(certificate: GainCertificate, config: FlexTeleopConfig) -> None:
     """Refuse (one line) a certificate for another plant or delays the setup's can exceed."""
     network = config.setup.network
-    certificate.check(config.params, *network.reached_bounds, network.reached_floors)
+    certificate.check(config.setup.plants, *network.reached_bounds, network.reached_floors)
 
 
 def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, envs: int,
@@ -268,6 +268,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="'--certificate'") from None
     config = evaluation_config(chosen, setup, delay, duration)
+    chosen = config.safety_certificate()  # extended to the setup's other plants
     _check_certificate(chosen, config)
     policies = [law_under(policy, config) for policy in policies]
 

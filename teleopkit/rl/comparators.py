@@ -31,7 +31,8 @@ import numpy as np
 
 from teleopkit.certification.certifier import certify_gains
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.certification.verification import cover_plants
+from teleopkit.model.params import TeleoperatorParams, plant_params
 from teleopkit.rl.baselines import (
     BASELINE_SEED,
     best_semi_active,
@@ -91,12 +92,14 @@ def frozen_counterpart(certificate: GainCertificate, params: TeleoperatorParams
     Returns
     -------
     GainCertificate
-        ``certificate`` itself if it is a closed-form certificate of the frozen class.
+        ``certificate`` itself if it is a closed-form certificate of the frozen class; else the
+        frozen one, covering the same further plants.
     """
     if certificate.gain_variation == "frozen" and certificate.method == "nuno":
         return certificate
-    return certify_gains(params, certificate.box, *certificate.delay_bounds, method="nuno",
-                         variation="frozen")
+    frozen = certify_gains(params, certificate.box, *certificate.delay_bounds, method="nuno",
+                           variation="frozen")
+    return cover_plants(frozen, [plant_params(record) for record in certificate.other_plants])
 
 
 def policy_observation(policy: GainPolicy) -> str:
@@ -384,11 +387,14 @@ def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
     Returns
     -------
     FlexTeleopConfig
-        The settings.
+        The settings; a closed-form certificate of the setup's first plant is extended to its
+        other plants (:func:`~teleopkit.certification.verification.cover_plants`).
     """
     setup = setup if setup is not None else Setup.paper()
     if delay is not None:
         setup = setup.with_delay(delay)
+    if setup.other_plants and certificate.covers_plant(setup.params):
+        certificate = cover_plants(certificate, setup.other_plants)
     return FlexTeleopConfig(setup, certificate, episode_length=duration)
 
 

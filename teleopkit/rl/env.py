@@ -154,12 +154,13 @@ class FlexTeleopConfig:
         Returns
         -------
         GainCertificate
-            ``certificate``, or the closed form's on the default box for the setup's plant and
+            ``certificate``, or the closed form's on the default box for the setup's plants and
             the delays its network reaches.
         """
         if self.certificate is not None:
             return self.certificate
-        return default_certificate(self.params, self.setup.network.reached_bounds)
+        return default_certificate(self.params, self.setup.network.reached_bounds,
+                                   plants=self.setup.plants)
 
 
 def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:
@@ -213,7 +214,8 @@ class TeleopBatch:
         self.batch = batch
         network = config.setup.network
         self.certificate = config.safety_certificate()
-        self.certificate.check(config.params, *network.reached_bounds, network.reached_floors)
+        self.certificate.check(config.setup.plants, *network.reached_bounds,
+                               network.reached_floors)
         self.loop = CertifiedLoop(layer_for(self.certificate, config.control_period))
         self.run_time_columns = self.layer.run_time_state(1).shape[1]
         self.features = (AdaptiveObservation(config.params.n_joints, config.control_period)

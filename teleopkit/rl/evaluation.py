@@ -270,8 +270,9 @@ def _started(controller: Controller, scenario: Scenario,
              config: FlexTeleopConfig | None) -> tuple[TeleopBatch, np.ndarray]:
     """The batch of the scenarios, started, the controller reset; the first observation."""
     config = config if config is not None else FlexTeleopConfig()
-    if scenario.params != config.params:
-        config = replace(config, setup=Setup.from_params(scenario.params, config.setup.network))
+    if scenario.plants != config.setup.plants:
+        setup = Setup.from_params(scenario.params, config.setup.network)
+        config = replace(config, setup=replace(setup, other_plants=scenario.other_plants))
     core = TeleopBatch(config, scenario.batch)
     reset = getattr(controller, "reset", None)
     if callable(reset):

@@ -78,7 +78,7 @@ class CertifiedLoop:
         certificate = self.layer.certificate
         if certificate is not None:
             scenario = simulator.scenario
-            certificate.check(scenario.params, scenario.forward.bound, scenario.backward.bound,
+            certificate.check(scenario.plants, scenario.forward.bound, scenario.backward.bound,
                               (delay_floor(scenario.forward), delay_floor(scenario.backward)))
         simulator.reset()
         self._simulator = simulator
@@ -91,7 +91,7 @@ class CertifiedLoop:
     def _measure(self, state: np.ndarray) -> None:
         """Hand the layer the measurements its tank is paid from (if it keeps one)."""
         if self.layer.measures_energy:
-            self.layer.observe(remote_energy(self.simulator.scenario.params, state),
+            self.layer.observe(self.simulator.scenario.per_plant(remote_energy, state),
                                motor_speed_integral(state))
 
     def step(self, raw: np.ndarray) -> tuple[StepResult, Projection]:

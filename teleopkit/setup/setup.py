@@ -17,8 +17,9 @@ a user's teleoperator::
     start: paper
 
 Only ``plant.local_arm`` is required: left-out entries take the paper's values (sized to the
-arm's joints where the paper's have two). The paper's setup ships as ``paper_setup.yaml``
-(:data:`PAPER_SETUP_FILE`).
+arm's joints where the paper's have two). ``plant`` may also be a list of plants (the same
+number of joints), each scenario running one of them drawn uniformly: a heavier or softer remote
+arm, a wall. The paper's setup ships as ``paper_setup.yaml`` (:data:`PAPER_SETUP_FILE`).
 """
 
 from __future__ import annotations
@@ -119,6 +120,24 @@ def _plant(node: Node) -> dict[str, Any]:
     }
 
 
+def _plant_data(p: TeleoperatorParams) -> dict[str, Any]:
+    """A plant as the ``plant`` entry of a setup file (every key written out)."""
+
+    def arm(value: PlanarArm) -> dict[str, Any]:
+        return {key: list(item) for key, item in asdict(value).items() if item is not None}
+
+    environment: Any = "free"
+    if isinstance(p.environment, Wall):
+        environment = {"wall": list(p.environment.position),
+                       "stiffness": p.environment.stiffness, "damping": p.environment.damping}
+    return {"local_arm": arm(p.local_arm), "remote_arm": arm(p.remote_arm),
+            "joints": {"stiffness": list(p.joints.stiffness),
+                       "rotor_inertia": list(p.joints.rotor_inertia)},
+            "local_gains": {"stiffness": list(p.local_gains.stiffness),
+                            "damping": list(p.local_gains.damping)},
+            "environment": environment, "torque_limit": p.torque_limit}
+
+
 @dataclass(frozen=True)
 class Setup:
     """A teleoperation setup: the plant, the network, the operator and the start.
@@ -142,6 +161,9 @@ class Setup:
     base : Path, optional
         Directory of the file it was read from (relative ``csv:`` paths start there); not
         part of the setup's identity.
+    other_plants : tuple of TeleoperatorParams, optional
+        Further plants the scenarios run (each scenario draws one of :attr:`plants`
+        uniformly); none by default.
 
     Examples
     --------
@@ -157,11 +179,21 @@ class Setup:
     operator: OperatorSetup = field(default_factory=OperatorSetup)
     start: StartSpec | StartMix = field(default_factory=lambda: StartSpec.fixed(_PAPER.initial))
     base: Path | None = field(default=None, compare=False)
+    other_plants: tuple[TeleoperatorParams, ...] = ()
 
     def __post_init__(self) -> None:
         n = self.params.n_joints
         if self.start.n_joints != n:
             raise SetupError(f"start: has {self.start.n_joints} joints, the arm has {n}")
+        object.__setattr__(self, "other_plants", tuple(self.other_plants))
+        for k, plant in enumerate(self.other_plants, start=1):
+            if plant.n_joints != n:
+                raise SetupError(f"plant[{k}]: has {plant.n_joints} joints, the first plant {n}")
+
+    @property
+    def plants(self) -> tuple[TeleoperatorParams, ...]:
+        """Every plant the scenarios run: ``params``, then :attr:`other_plants`."""
+        return (self.params, *self.other_plants)
 
     @classmethod
     def paper(cls) -> Setup:
@@ -212,8 +244,14 @@ class Setup:
         """
         root = Path(base) if base is not None else Path.cwd()
         entries = Node(data).fields(("plant", "network", "operator", "start"), ("plant",))
-        parts = _plant(entries["plant"])
-        n = parts["local_arm"].n_joints
+        node = entries["plant"]
+        variants = [_plant(item) for item in (node.items() if isinstance(node.value, list)
+                                              else (node,))]
+        n = variants[0]["local_arm"].n_joints
+        for k, parts in enumerate(variants):
+            if parts["local_arm"].n_joints != n:
+                raise SetupError(f"plant[{k}]: has {parts['local_arm'].n_joints} joints, the "
+                                 f"first plant {n}")
         network = entries["network"].fields(("forward", "backward")) if "network" in entries \
             else {}
         channels = [Channel.from_node(network[key], root, k) if key in network else Channel()
@@ -223,12 +261,12 @@ class Setup:
         start = StartMix.from_node(entries.get("start", Node("paper" if n == 2 else "rest",
                                                              "start")), n)
         try:
-            params = TeleoperatorParams(
+            plants = tuple(TeleoperatorParams(
                 **parts, remote_gains=PDGains.uniform(10.0, 30.0, n),
-                operator=operator.model(n), initial=start.initial())
+                operator=operator.model(n), initial=start.initial()) for parts in variants)
         except ValueError as error:
             raise SetupError(f"plant: {error}") from None
-        return cls(params, Network(*channels), operator, start, root)
+        return cls(plants[0], Network(*channels), operator, start, root, plants[1:])
 
     @classmethod
     def from_file(cls, path: str | Path) -> Setup:
@@ -270,23 +308,9 @@ class Setup:
             Keys ``plant``, ``network``, ``operator``, ``start``.
         """
         root = Path(base) if base is not None else None
-        p = self.params
-
-        def arm(value: PlanarArm) -> dict[str, Any]:
-            return {key: list(item) for key, item in asdict(value).items() if item is not None}
-
-        environment: Any = "free"
-        if isinstance(p.environment, Wall):
-            environment = {"wall": list(p.environment.position),
-                           "stiffness": p.environment.stiffness,
-                           "damping": p.environment.damping}
+        plants = [_plant_data(params) for params in self.plants]
         return {
-            "plant": {"local_arm": arm(p.local_arm), "remote_arm": arm(p.remote_arm),
-                      "joints": {"stiffness": list(p.joints.stiffness),
-                                 "rotor_inertia": list(p.joints.rotor_inertia)},
-                      "local_gains": {"stiffness": list(p.local_gains.stiffness),
-                                      "damping": list(p.local_gains.damping)},
-                      "environment": environment, "torque_limit": p.torque_limit},
+            "plant": plants[0] if len(plants) == 1 else plants,
             "network": {"forward": self.network.forward.to_data(root),
                         "backward": self.network.backward.to_data(root)},
             "operator": {"stiffness": self.operator.stiffness,
@@ -365,7 +389,7 @@ class Setup:
     def scenarios(self, rng: np.random.Generator | int = 0, batch: int = 1,
                   delay: str | float | tuple[DelayProfile, DelayProfile] | None = None,
                   ) -> Scenario:
-        """Draw ``batch`` scenarios: operator motions, then delays, then starts.
+        """Draw ``batch`` scenarios: operator motions, then delays, starts and plants.
 
         Parameters
         ----------
@@ -392,30 +416,40 @@ class Setup:
         gains, motion = self.operator.motion.draw(rng, batch, self.n_joints)
         forward, backward = (self.network.draw(rng, batch) if delay is None
                              else delay_pair(delay, rng))
-        return Scenario(self.params, forward, backward, gains, motion,
-                        self.start.draw(rng, batch))
+        start = self.start.draw(rng, batch)
+        index = rng.integers(len(self.plants), size=batch) if len(self.plants) > 1 else None
+        return Scenario(self.params, forward, backward, gains, motion, start, self.other_plants,
+                        index)
 
     def describe(self) -> list[str]:
         """What the setup describes, a line per part, for people."""
-        p = self.params
-        arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
-                f"{listed(arm.masses)} kg" for name, arm in (("local", p.local_arm),
-                                                           ("remote", p.remote_arm))]
-        wall = ("free space" if not isinstance(p.environment, Wall)
-                else f"a wall at {listed(p.environment.position)} rad")
+        plants = [_describe_plant(params) for params in self.plants]
+        if len(plants) > 1:
+            plants = [[f"plant {k + 1} of {len(plants)}, {line}" for line in lines]
+                      for k, lines in enumerate(plants)]
         channels = [f"{name} delay: {ch.min:g}-{ch.max:g} s, profile {', '.join(ch.profiles)}"
                     for name, ch in (("forward", self.network.forward),
                                      ("backward", self.network.backward))]
-        return [*arms,
-                f"elastic joints: stiffness {listed(p.joints.stiffness)} N m/rad, rotor inertia "
-                f"{listed(p.joints.rotor_inertia)} kg m^2",
-                f"local gains: K_l {listed(p.local_gains.stiffness)}, B_l "
-                f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
+        return [*(line for lines in plants for line in lines),
                 *channels,
                 f"operator: K_s {self.operator.stiffness:g}, K_d {self.operator.damping:g}; "
                 f"{self.operator.motion.describe()}",
                 f"start: {self.start.describe()}",
                 f"fingerprint {self.fingerprint}"]
+
+
+def _describe_plant(p: TeleoperatorParams) -> list[str]:
+    """A plant for people: its arms, joints, local gains and environment."""
+    arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
+            f"{listed(arm.masses)} kg" for name, arm in (("local", p.local_arm),
+                                                       ("remote", p.remote_arm))]
+    wall = ("free space" if not isinstance(p.environment, Wall)
+            else f"a wall at {listed(p.environment.position)} rad")
+    return [*arms,
+            f"elastic joints: stiffness {listed(p.joints.stiffness)} N m/rad, rotor inertia "
+            f"{listed(p.joints.rotor_inertia)} kg m^2",
+            f"local gains: K_l {listed(p.local_gains.stiffness)}, B_l "
+            f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m"]
 
 
 SHIPPED_SETUPS: Mapping[str, str] = MappingProxyType({"paper": PAPER_SETUP_FILE,

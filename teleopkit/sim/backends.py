@@ -9,14 +9,16 @@ factored form (see :func:`teleopkit.sim.kernel.advance`).
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim import kernel
 from teleopkit.sim.numpy_integrator import NumpyIntegrator
 from teleopkit.sim.state import StateLayout
+
+if TYPE_CHECKING:
+    from teleopkit.sim.scenarios import Scenario
 
 __all__ = ["Backend", "CompiledBackend", "NumpyBackend", "constant_past"]
 
@@ -77,8 +79,8 @@ class CompiledBackend:
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        The teleoperator.
+    scenario : Scenario
+        The batch (its plants and which one each scenario runs).
     state : ndarray, shape (B, 12 n)
         States at ``t = 0``.
     dt : float
@@ -89,13 +91,13 @@ class CompiledBackend:
         Largest delay that will be read.
     """
 
-    def __init__(self, params: TeleoperatorParams, state: np.ndarray, dt: float, substeps: int,
+    def __init__(self, scenario: Scenario, state: np.ndarray, dt: float, substeps: int,
                  bound: float) -> None:
         self.dt, self.substeps = dt, substeps
-        self.model = kernel.kernel_model(params)
+        self.model = kernel.kernel_model(scenario.plants, scenario.plant_index)
         self._state = np.array(state, dtype=float)
         self.initial = constant_past(self._state)
-        n = params.n_joints
+        n = scenario.params.n_joints
         length = math.ceil(bound / dt) + 2
         # reads before t = 0 take the constant past, so only step 0 (slot 0) needs a value
         self.history = np.zeros((len(state), 2, length, 2 * n))
@@ -131,13 +133,13 @@ class NumpyBackend:
 
     Parameters
     ----------
-    params, state, dt, substeps, bound
+    scenario, state, dt, substeps, bound
         As for :class:`CompiledBackend`.
     """
 
-    def __init__(self, params: TeleoperatorParams, state: np.ndarray, dt: float, substeps: int,
+    def __init__(self, scenario: Scenario, state: np.ndarray, dt: float, substeps: int,
                  bound: float) -> None:
-        self.integrator = NumpyIntegrator(params, state, dt, substeps, bound)
+        self.integrator = NumpyIntegrator(scenario, state, dt, substeps, bound)
 
     @property
     def state(self) -> np.ndarray:

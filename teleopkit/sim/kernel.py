@@ -34,7 +34,8 @@ Layout for speed (measured reasons in ``docs/benchmark_history.md``):
   kernel multiplies as it reads instead of reading ``S B`` delays sampled by numpy (26 MB per
   25-period call at batch 4096), the same products bit for bit.
 - Model constants are one plain array (:func:`kernel_model`); a tuple of arrays would be reference
-  counted at every read.
+  counted at every read. A batch of several plants has a column per scenario, read like the
+  operator motion's column (the lane's own, or the one shared).
 - Two-link arms use a closed-form inertia solve; other arms a generic scalar Cholesky path.
 - A block of one scenario (a single run, or the last block of a batch) runs the per-variable
   loops without their lane loop: the vectorised loop's set-up for one lane took about half of
@@ -48,6 +49,7 @@ Layout for speed (measured reasons in ``docs/benchmark_history.md``):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit, prange
@@ -82,23 +84,35 @@ _KL, _BL, _STIFFNESS, _ROTOR_INV, _WALL, _KS, _KD, _LIMIT, _WALL_K, _WALL_D = ra
 _INERTIA = 10
 
 
-def kernel_model(params: TeleoperatorParams) -> np.ndarray:
-    """Pack the constants of ``params`` into one array, the form the kernel takes.
+def kernel_model(plants: Sequence[TeleoperatorParams],
+                 plant_index: np.ndarray | None = None) -> np.ndarray:
+    """Pack the constants of the plants into one array, the form the kernel takes.
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        The teleoperator.
+    plants : sequence of TeleoperatorParams
+        The teleoperators of the batch (the same number of joints).
+    plant_index : ndarray of int, shape (B,), optional
+        The plant each scenario runs; without it the batch shares ``plants[0]``.
 
     Returns
     -------
-    ndarray, shape (10 + 2 n, n)
+    ndarray, shape (10 + 2 n, n, K)
         Per joint: rows ``K_l, B_l, S_r, 1 / J_r``, wall position, ``K_s, K_d``, torque limit, wall
         stiffness and damping (scalars repeated per joint); then the inertia coefficients ``a_ij``
         (:func:`teleopkit.model.dynamics.inertia_coefficients`) of the local arm (``n`` rows) and
-        of the remote arm (``n`` rows). A plain array passes through numba's parallel loop and is
-        read without reference counting.
+        of the remote arm (``n`` rows). Column ``b`` of the last axis is scenario ``b``'s plant
+        (``K = B``), or the one plant of the batch (``K = 1``). A plain array passes through
+        numba's parallel loop and is read without reference counting.
     """
+    columns = [_plant_columns(params) for params in plants]
+    if plant_index is None or len(plants) == 1:
+        return columns[0][..., None]
+    return np.ascontiguousarray(np.stack(columns, axis=-1)[..., np.asarray(plant_index)])
+
+
+def _plant_columns(params: TeleoperatorParams) -> np.ndarray:
+    """The constants of one plant, shape ``(10 + 2 n, n)`` (rows as in :func:`kernel_model`)."""
     n = params.n_joints
     wall = params.environment if isinstance(params.environment, Wall) else None
     joint = [params.local_gains.stiffness, params.local_gains.damping, params.joints.stiffness,
@@ -112,29 +126,29 @@ def kernel_model(params: TeleoperatorParams) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _joint(m, i, ql, dql, qr, dqr, th, dth, ql_delayed, th_delayed, qh, kr, br):
-    """Controllers, operator, environment and spring of joint ``i`` (``m``: :func:`kernel_model`).
+def _joint(m, c, i, ql, dql, qr, dqr, th, dth, ql_delayed, th_delayed, qh, kr, br):
+    """Controllers, operator, environment and spring of joint ``i`` of the plant ``m[..., c]``.
 
     Returns the torque on the local link, the torque on the remote link and the motor acceleration.
     """
-    lim = m[_LIMIT, i]
-    tau_l = min(max(m[_KL, i] * (ql - th_delayed) + m[_BL, i] * dql, -lim), lim)
+    lim = m[_LIMIT, i, c]
+    tau_l = min(max(m[_KL, i, c] * (ql - th_delayed) + m[_BL, i, c] * dql, -lim), lim)
     tau_r = min(max(-kr * (th - ql_delayed) - br * dth, -lim), lim)
-    tau_h = m[_KS, i] * (qh - ql) - m[_KD, i] * dql
-    depth = qr - m[_WALL, i]
-    tau_e = max(0.0, m[_WALL_K, i] * depth + m[_WALL_D, i] * dqr) if depth > 0 else 0.0
-    spring = m[_STIFFNESS, i] * (qr - th)
-    return tau_h - tau_l, -spring - tau_e, (tau_r + spring) * m[_ROTOR_INV, i]
+    tau_h = m[_KS, i, c] * (qh - ql) - m[_KD, i, c] * dql
+    depth = qr - m[_WALL, i, c]
+    tau_e = max(0.0, m[_WALL_K, i, c] * depth + m[_WALL_D, i, c] * dqr) if depth > 0 else 0.0
+    spring = m[_STIFFNESS, i, c] * (qr - th)
+    return tau_h - tau_l, -spring - tau_e, (tau_r + spring) * m[_ROTOR_INV, i, c]
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _two_link_acceleration(m, arm, q2, dq1, dq2, tau1, tau2):
+def _two_link_acceleration(m, c, arm, q2, dq1, dq2, tau1, tau2):
     """Closed form of :func:`_arm_acceleration` for two links: ``(q1'', q2'')``."""
     first = _INERTIA + 2 * arm
-    a12, a22 = m[first, 1], m[first + 1, 1]
-    s, c = sincos(q2)
-    m12 = a22 + a12 * c
-    m11 = m[first, 0] + a12 * c + m12
+    a12, a22 = m[first, 1, c], m[first + 1, 1, c]
+    s, cos = sincos(q2)
+    m12 = a22 + a12 * cos
+    m11 = m[first, 0, c] + a12 * cos + m12
     h2 = a12 * s * dq1 * dq1
     h1 = h2 - a12 * s * (dq1 + dq2) * (dq1 + dq2)
     r1 = tau1 - h1
@@ -164,7 +178,7 @@ def _two_link_delayed(hist, initial, delays, drow, scale, clock, frac, dt, st, d
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, w):
+def _two_link_lane(m, c, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, w):
     """Write the motion slopes ``slopes[b, r, :12, w]`` of lane ``w`` of a two-link block.
 
     The stage is ``r``, its state ``st[b, :, w]`` and its delayed reads ``delayed[b, :, w]``
@@ -176,14 +190,14 @@ def _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r, lo, 
     ql1, ql2, dql1, dql2 = st[b, 0, w], st[b, 1, w], st[b, 2, w], st[b, 3, w]
     qr1, qr2, dqr1, dqr2 = st[b, 4, w], st[b, 5, w], st[b, 6, w], st[b, 7, w]
     th1, th2, dth1, dth2 = st[b, 8, w], st[b, 9, w], st[b, 10, w], st[b, 11, w]
-    local1, link1, ddth1 = _joint(m, 0, ql1, dql1, qr1, dqr1, th1, dth1, delayed[b, 0, w],
+    local1, link1, ddth1 = _joint(m, c, 0, ql1, dql1, qr1, dqr1, th1, dth1, delayed[b, 0, w],
                                   delayed[b, 2, w], qh[row, col, 0] * qh_gain[lane, 0],
                                   gains[p, lane, 0], gains[p, lane, 2])
-    local2, link2, ddth2 = _joint(m, 1, ql2, dql2, qr2, dqr2, th2, dth2, delayed[b, 1, w],
+    local2, link2, ddth2 = _joint(m, c, 1, ql2, dql2, qr2, dqr2, th2, dth2, delayed[b, 1, w],
                                   delayed[b, 3, w], qh[row, col, 1] * qh_gain[lane, 1],
                                   gains[p, lane, 1], gains[p, lane, 3])
-    ddql1, ddql2 = _two_link_acceleration(m, 0, ql2, dql1, dql2, local1, local2)
-    ddqr1, ddqr2 = _two_link_acceleration(m, 1, qr2, dqr1, dqr2, link1, link2)
+    ddql1, ddql2 = _two_link_acceleration(m, c, 0, ql2, dql1, dql2, local1, local2)
+    ddqr1, ddqr2 = _two_link_acceleration(m, c, 1, qr2, dqr1, dqr2, link1, link2)
     slopes[b, r, 0, w], slopes[b, r, 1, w] = dql1, dql2
     slopes[b, r, 2, w], slopes[b, r, 3, w] = ddql1, ddql2
     slopes[b, r, 4, w], slopes[b, r, 5, w] = dqr1, dqr2
@@ -205,7 +219,7 @@ def _two_link_integrands(st, delayed, slopes, b, r, w):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _arm_acceleration(m, arm, x, b, w, first, work, slopes, r):
+def _arm_acceleration(m, c, arm, x, b, w, first, work, slopes, r):
     """Solve ``M(q) q'' = torque - C(q, q') q'`` for any number of links (:mod:`.dynamics`).
 
     ``q`` and ``q'`` are ``x[b, first:first + n, w]`` and ``x[b, first + n:first + 2 n, w]``, the
@@ -224,13 +238,13 @@ def _arm_acceleration(m, arm, x, b, w, first, work, slopes, r):
         work[b, phi, i] = angle
         work[b, dphi, i] = rate
         work[b, coriolis, i] = 0.0
-        work[b, i, i] = m[coef + i, i]
+        work[b, i, i] = m[coef + i, i, c]
     for i in range(n):
         for j in range(i + 1, n):
-            s, c = sincos(work[b, phi, i] - work[b, phi, j])
-            a = m[coef + i, j]
-            work[b, i, j] = a * c
-            work[b, j, i] = a * c
+            s, cos = sincos(work[b, phi, i] - work[b, phi, j])
+            a = m[coef + i, j, c]
+            work[b, i, j] = a * cos
+            work[b, j, i] = a * cos
             work[b, coriolis, i] += a * s * work[b, dphi, j] * work[b, dphi, j]
             work[b, coriolis, j] -= a * s * work[b, dphi, i] * work[b, dphi, i]
     for j in range(n):  # M = T^T M_abs T: suffix sums over rows, then columns
@@ -286,6 +300,7 @@ def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clo
     length = hist.shape[2]
     n = initial.shape[2]
     col = min(lane, qh.shape[1] - 1)
+    c = min(lane, m.shape[2] - 1)
     to_remote = locate(k, newest, frac, delay_at(delays, scale, drow, 0, lane), dt, length)
     to_local = locate(k, newest, frac, delay_at(delays, scale, drow, 1, lane), dt, length)
     for i in range(n):
@@ -293,7 +308,7 @@ def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clo
         th = interpolate(hist, lane, 1, i, to_local, st[b, 4 * n + i, w], st[b, 5 * n + i, w],
                           initial)
         work[b, n, i], work[b, n + 1, i], slopes[b, r, 5 * n + i, w] = _joint(
-            m, i, st[b, i, w], st[b, n + i, w], st[b, 2 * n + i, w], st[b, 3 * n + i, w],
+            m, c, i, st[b, i, w], st[b, n + i, w], st[b, 2 * n + i, w], st[b, 3 * n + i, w],
             st[b, 4 * n + i, w], st[b, 5 * n + i, w], ql, th, qh[row, col, i] * qh_gain[lane, i],
             gains[p, lane, i], gains[p, lane, n + i])
         slopes[b, r, i, w] = st[b, n + i, w]
@@ -305,8 +320,8 @@ def _generic_lane(m, hist, initial, delays, drow, scale, qh, qh_gain, gains, clo
         slopes[b, r, 9 * n + i, w] = st[b, 8 * n + i, w]
         slopes[b, r, 10 * n + i, w] = st[b, 5 * n + i, w] * st[b, 5 * n + i, w]
         slopes[b, r, 11 * n + i, w] = st[b, 10 * n + i, w]
-    _arm_acceleration(m, 0, st, b, w, 0, work, slopes, r)
-    _arm_acceleration(m, 1, st, b, w, 2 * n, work, slopes, r)
+    _arm_acceleration(m, c, 0, st, b, w, 0, work, slopes, r)
+    _arm_acceleration(m, c, 1, st, b, w, 2 * n, work, slopes, r)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -449,9 +464,14 @@ def _advance_block(m, hist, initial, step0, dt, substeps, delays, scale, left, q
                         for w in range(width):
                             _two_link_delayed(hist, initial, delays, clock[2], scale, clock, frac,
                                               dt, st, delayed, b, lo, w)
-                    for w in range(width):
-                        _two_link_lane(m, qh, qh_gain, gains, clock, st, delayed, slopes, b, r,
-                                       lo, w)
+                    if m.shape[2] == 1:
+                        for w in range(width):
+                            _two_link_lane(m, 0, qh, qh_gain, gains, clock, st, delayed, slopes,
+                                           b, r, lo, w)
+                    else:
+                        for w in range(width):
+                            _two_link_lane(m, lo + w, qh, qh_gain, gains, clock, st, delayed,
+                                           slopes, b, r, lo, w)
                     for w in range(width):
                         _two_link_integrands(st, delayed, slopes, b, r, w)
                 elif jumps and r == STAGES - 1:
@@ -553,8 +573,9 @@ def advance(x: np.ndarray, hist: np.ndarray, initial: np.ndarray, step0: int, dt
         when the batch shares one motion (``M = 1``).
     gains : ndarray, shape (P, B, 2 n)
         Remote gains ``[K_r, B_r]`` held over each control period.
-    model : ndarray
-        Model constants from :func:`kernel_model`.
+    model : ndarray, shape (10 + 2 n, n, K)
+        Model constants from :func:`kernel_model`: the batch's one plant (``K = 1``) or each
+        scenario's (``K = B``).
     out_state : ndarray, shape (P, B, 12 n)
         Receives the state at the end of each period.
     out_delayed : ndarray, shape (P, B, 2, n)

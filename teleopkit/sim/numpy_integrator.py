@@ -8,6 +8,8 @@ per-step Python loop" of the benchmarks.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from teleopkit.delays.history import ChannelHistory
@@ -16,6 +18,9 @@ from teleopkit.model.laws import environment_torque, local_torque, operator_torq
 from teleopkit.model.params import PlanarArm, TeleoperatorParams
 from teleopkit.sim import tableau
 from teleopkit.sim.state import StateLayout
+
+if TYPE_CHECKING:
+    from teleopkit.sim.scenarios import Scenario
 
 __all__ = ["NumpyIntegrator"]
 
@@ -34,8 +39,8 @@ class NumpyIntegrator:
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        The model.
+    scenario : Scenario
+        The batch: its plants and which one each scenario runs.
     state : ndarray, shape (B, 12 n)
         Initial state (:class:`~teleopkit.sim.state.StateLayout`).
     dt : float
@@ -46,13 +51,13 @@ class NumpyIntegrator:
         Largest delay that will be read.
     """
 
-    def __init__(self, params: TeleoperatorParams, state: np.ndarray, dt: float, substeps: int,
+    def __init__(self, scenario: Scenario, state: np.ndarray, dt: float, substeps: int,
                  bound: float) -> None:
-        self.params = params
+        self.scenario = scenario
         self.state = np.array(state, dtype=float)
         self.dt = dt
         self.substeps = substeps
-        self.layout = StateLayout(params.n_joints)
+        self.layout = StateLayout(scenario.params.n_joints)
         self.channels = tuple(ChannelHistory(self.layout.channel(self.state, c)[0], dt, bound)
                               for c in (0, 1))
 
@@ -133,10 +138,19 @@ class NumpyIntegrator:
         ndarray, shape (B, 12 n)
             The derivative.
         """
-        p = self.params
+        ql_delayed, th_delayed = self._delayed(x, offset, delays)
+        if not self.scenario.other_plants:  # no copies of the batch for one plant
+            return self._motion(self.scenario.params, x, ql_delayed, th_delayed, qh, gains)
+        return self.scenario.per_plant(
+            lambda params, lanes: self._motion(params, x[lanes], ql_delayed[lanes],
+                                               th_delayed[lanes], qh[lanes], gains[lanes]),
+            np.arange(len(x)))
+
+    def _motion(self, p: TeleoperatorParams, x: np.ndarray, ql_delayed: np.ndarray,
+                th_delayed: np.ndarray, qh: np.ndarray, gains: np.ndarray) -> np.ndarray:
+        """The derivative of scenarios that run the plant ``p``, given their delayed reads."""
         ql, dql, qr, dqr, th, dth = (self.layout.get(x, name)
                                      for name in ("ql", "dql", "qr", "dqr", "theta", "dtheta"))
-        ql_delayed, th_delayed = self._delayed(x, offset, delays)
         tau_l = local_torque(p.local_gains, ql, dql, th_delayed, p.torque_limit)
         tau_r = remote_torque(gains, th, dth, ql_delayed, p.torque_limit)
         tau_h = operator_torque(p.operator, qh, ql, dql)

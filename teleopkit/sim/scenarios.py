@@ -3,11 +3,12 @@
 :func:`paper_scenarios` draws the randomisation of the authors' simulation model: reference
 gains ``G_i`` uniform on ``[-1, -0.5] U [0.5, 1]`` and delay scales ``g_m, g_s ~ U[0.5, 1]``.
 A :class:`~teleopkit.setup.Setup` draws batches of other distributions (operator motions,
-starts and delays per scenario).
+starts, delays and plants per scenario).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import cast
 
@@ -58,6 +59,12 @@ class Scenario:
     start : ndarray, shape (B, 3, n) or (1, 3, n), optional
         Initial positions ``q_l(0), q_r(0), theta_r(0)`` of each scenario (or shared); by
         default ``params.initial``. Velocities start at zero and the past is held constant.
+    other_plants : tuple of TeleoperatorParams, optional
+        Further plants (arms, joints, local gains, operator spring and damper, environment,
+        torque limit) some scenarios run, with as many joints as ``params``.
+    plant_index : ndarray of int, shape (B,), optional
+        Which of :attr:`plants` (``params``, then ``other_plants``) each scenario runs; by
+        default ``params``.
     """
 
     params: TeleoperatorParams = field(default_factory=paper_setup)
@@ -66,6 +73,8 @@ class Scenario:
     reference_gains: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
     motion: Motion | None = None
     start: np.ndarray | None = None
+    other_plants: tuple[TeleoperatorParams, ...] = ()
+    plant_index: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         gains = np.atleast_2d(np.asarray(self.reference_gains, dtype=float))
@@ -77,6 +86,7 @@ class Scenario:
         object.__setattr__(self, "reference_gains", gains)
         self._check_motion()
         self._check_start()
+        self._check_plants()
         for name in ("forward", "backward"):
             profile = getattr(self, name)
             bound = profile.bound
@@ -114,6 +124,70 @@ class Scenario:
         if not np.all(np.isfinite(start)):
             raise ValueError("start positions must be finite")
         object.__setattr__(self, "start", start)
+
+    def _check_plants(self) -> None:
+        object.__setattr__(self, "other_plants", tuple(self.other_plants))
+        plants = self.plants
+        for params in plants:
+            if not isinstance(params, TeleoperatorParams):
+                raise ValueError(f"plants must be TeleoperatorParams, got {params!r}")
+            if params.n_joints != self.params.n_joints:
+                raise ValueError(f"every plant needs {self.params.n_joints} joints, one has "
+                                 f"{params.n_joints}")
+        if self.plant_index is None:
+            return
+        index = np.asarray(self.plant_index)
+        if index.shape != (self.batch,) or not np.issubdtype(index.dtype, np.integer) or (
+                index.size and (index.min() < 0 or index.max() >= len(plants))):
+            raise ValueError(f"plant_index needs {self.batch} whole numbers in 0..{len(plants) - 1}"
+                             f", got {self.plant_index!r}")
+        object.__setattr__(self, "plant_index", index.astype(np.intp))
+
+    @property
+    def plant_of(self) -> np.ndarray:
+        """The index in :attr:`plants` of each scenario's plant, ``(B,)``."""
+        if self.plant_index is None:
+            return np.zeros(self.batch, dtype=np.intp)
+        return self.plant_index
+
+    @property
+    def plants(self) -> tuple[TeleoperatorParams, ...]:
+        """Every plant of the batch: ``params``, then :attr:`other_plants`."""
+        return (self.params, *self.other_plants)
+
+    @property
+    def lanes_by_plant(self) -> list[tuple[TeleoperatorParams, np.ndarray]]:
+        """Each plant the batch runs with the scenarios that run it (ascending indices)."""
+        index = self.plant_of
+        return [(params, np.flatnonzero(index == k)) for k, params in enumerate(self.plants)
+                if np.any(index == k)]
+
+    def per_plant(self, function: Callable[[TeleoperatorParams, np.ndarray], np.ndarray],
+                  values: np.ndarray) -> np.ndarray:
+        """Evaluate ``function(plant, values of its scenarios)`` for each plant of the batch.
+
+        Parameters
+        ----------
+        function : callable
+            A function of a plant and an array whose first axis is scenarios (for example
+            :func:`~teleopkit.sim.energy.remote_energy` of states), returning an array with the
+            same first axis.
+        values : ndarray, shape (B, ...)
+            One entry per scenario.
+
+        Returns
+        -------
+        ndarray, shape (B, ...)
+            Scenario ``b``'s entry computed with its plant.
+        """
+        if len(self.plants) == 1:
+            return function(self.params, values)
+        parts = [(lanes, function(params, values[lanes])) for params, lanes in
+                 self.lanes_by_plant]
+        out = np.empty((self.batch, *parts[0][1].shape[1:]), dtype=parts[0][1].dtype)
+        for lanes, part in parts:
+            out[lanes] = part
+        return out
 
     @property
     def batch(self) -> int:
@@ -157,7 +231,9 @@ class Scenario:
             self.start, (times, 1, 1))
         return Scenario(self.params, _repeat_delay(self.forward, self.batch, times),
                         _repeat_delay(self.backward, self.batch, times),
-                        np.tile(self.reference_gains, (times, 1)), motion, start)
+                        np.tile(self.reference_gains, (times, 1)), motion, start,
+                        self.other_plants,
+                        None if self.plant_index is None else np.tile(self.plant_index, times))
 
     @property
     def delay_bound(self) -> float:

@@ -119,7 +119,8 @@ class Simulator:
         self.substeps = substeps(control_period, dt)
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
-        check_step(scenario.params, dt, control_period)
+        for params in scenario.plants:
+            check_step(params, dt, control_period)
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
@@ -139,8 +140,9 @@ class Simulator:
         """:func:`check_gains`, and motor damping the step integrates stably."""
         gains = check_gains(gains, self.n_joints)
         if gains.size:
-            check_motor_damping(self.scenario.params, self.dt, gains[..., self.n_joints:].max(),
-                                "remote damping B_r", self.control_period)
+            for params in self.scenario.plants:
+                check_motor_damping(params, self.dt, gains[..., self.n_joints:].max(),
+                                    "remote damping B_r", self.control_period)
         return gains
 
     @property
@@ -177,7 +179,7 @@ class Simulator:
         """Return to ``t = 0`` with the initial state and an empty history."""
         self._step = 0
         kind = NumpyBackend if self.backend == "numpy" else CompiledBackend
-        self._backend: Backend = kind(self.scenario.params, self.initial_state(), self.dt,
+        self._backend: Backend = kind(self.scenario, self.initial_state(), self.dt,
                                       self.substeps, self.scenario.delay_bound)
 
     def initial_record(self) -> StepResult:
