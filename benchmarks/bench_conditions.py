@@ -6,9 +6,10 @@ Run from the repository root (a few minutes per family; comparators are cached):
         [--scenarios 32] [--out runs/conditions]
 
 Every family is a setup (plant, network, operator, start) that differs from the paper's in one
-way; the last, their mixture, draws the conditions of several families independently per
+way; the last two, their mixtures, draw the conditions of several families independently per
 scenario (a user's varied day: there no constant gains or schedule fits every run, and feedback
-has something to find). For each family and tuner it runs ``compare``: the tuner, the best
+has something to find), the second with the plant of each scenario drawn too (the paper's, the
+heavier softer arm, the wall). For each family and tuner it runs ``compare``: the tuner, the best
 constant gains of the frozen class on its certificate's box (``best static``, the reference),
 those of the tuner's class, the tuned semi-active law and the tuner's own mean schedule
 replayed open loop, all searched for that family on its training scenarios (never on the
@@ -54,6 +55,8 @@ from teleopkit.setup.operator import OperatorSetup
 
 PAPER = Setup.paper()
 MIXTURE = "mixture of the families"
+PLANT_MIXTURE = "mixture with three plants"
+MIXTURES = (MIXTURE, PLANT_MIXTURE)
 
 
 def _motion(kind: str, **settings: object) -> Callable[[Setup], Setup]:
@@ -147,6 +150,13 @@ def _mixture(folder: Path) -> Setup:
     return Setup.from_data(data)
 
 
+def _plant_mixture(folder: Path) -> Setup:
+    """:func:`_mixture` with each scenario's plant drawn too: the paper's, the heavier softer
+    arm of :func:`_plant` and the paper's against the wall of :func:`_wall`."""
+    mixture = _mixture(folder)
+    return replace(mixture, other_plants=(_plant(PAPER).params, _wall(PAPER).params))
+
+
 def families(folder: Path) -> dict[str, Setup]:
     """The condition families, each the paper's setup changed in one way (or two), and their
     mixture."""
@@ -175,6 +185,7 @@ def families(folder: Path) -> dict[str, Setup]:
         "switching delays 0-1 s": both(_delays("switching:0:1:50ms")),
         "recorded-style delay trace": both(_trace(folder)),
         MIXTURE: _mixture(folder),
+        PLANT_MIXTURE: _plant_mixture(folder),
     }
 
 
@@ -183,7 +194,8 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     """Every tuner on one family: per-scenario rows and the summary rows."""
     frames, rows = [], []
     variation = policy_certificate(next(iter(tuners.values()))).gain_variation
-    certificate = default_certificate(setup.params, setup.network.reached_bounds, variation)
+    certificate = default_certificate(setup.params, setup.network.reached_bounds, variation,
+                                      setup.plants)
     config = evaluation_config(certificate, setup)
     tuners = {label: law_under(policy, config) for label, policy in tuners.items()}
     first = next(iter(tuners.values()))
@@ -251,14 +263,14 @@ def main() -> None:
     summary.to_csv(args.out / "summary.csv", index=False)
     print(summary.round(2).to_string(index=False))
     for tuner, rows in summary.groupby("tuner", sort=False):
-        part = rows[rows["family"] != MIXTURE]
+        part = rows[~rows["family"].isin(MIXTURES)]
         if len(part):
             worst = part.loc[part["vs static"].idxmax()]
             print(f"{tuner}: mean of the families vs static {part['vs static'].mean():+.1f} %, "
                   f"worst {worst['vs static']:+.1f} % ({worst['family']}), mean vs open loop "
                   f"{part['vs open loop'].mean():+.1f} %")
-        for _, row in rows[rows["family"] == MIXTURE].iterrows():
-            print(f"{tuner} on their mixture, per scenario: vs static "
+        for _, row in rows[rows["family"].isin(MIXTURES)].iterrows():
+            print(f"{tuner} on the {row['family']}, per scenario: vs static "
                   f"{row['vs static per scenario']:+.1f} % (se "
                   f"{row['vs static per scenario se']:.1f}), vs open loop "
                   f"{row['vs open loop per scenario']:+.1f} % (se "
