@@ -423,19 +423,28 @@ class Setup:
 
     def describe(self) -> list[str]:
         """What the setup describes, a line per part, for people."""
-        plants = [_describe_plant(params) for params in self.plants]
-        if len(plants) > 1:
-            plants = [[f"plant {k + 1} of {len(plants)}, {line}" for line in lines]
-                      for k, lines in enumerate(plants)]
+        plants = _describe_plants(self.plants)
         channels = [f"{name} delay: {ch.min:g}-{ch.max:g} s, profile {', '.join(ch.profiles)}"
                     for name, ch in (("forward", self.network.forward),
                                      ("backward", self.network.backward))]
-        return [*(line for lines in plants for line in lines),
-                *channels,
+        return [*plants, *channels,
                 f"operator: K_s {self.operator.stiffness:g}, K_d {self.operator.damping:g}; "
                 f"{self.operator.motion.describe()}",
                 f"start: {self.start.describe()}",
                 f"fingerprint {self.fingerprint}"]
+
+
+def _describe_plants(plants: tuple[TeleoperatorParams, ...]) -> list[str]:
+    """The first plant whole, each other one by the lines where it differs from the first."""
+    first = _describe_plant(plants[0])
+    if len(plants) == 1:
+        return first
+    lines = [f"plant 1 of {len(plants)}, {line}" for line in first]
+    for k, params in enumerate(plants[1:], start=2):
+        differs = [line for line in _describe_plant(params) if line not in first]
+        lines += [f"plant {k} of {len(plants)}, {line}" for line in differs or
+                  ["the same as plant 1"]]
+    return lines
 
 
 def _describe_plant(p: TeleoperatorParams) -> list[str]:

@@ -179,6 +179,8 @@ def test_the_setup_command_names_each_plant(setup, tmp_path):
     shown = subprocess.run([sys.executable, "-m", "teleopkit.cli", "setup", str(path)],
                            capture_output=True, text=True, check=True).stdout
     assert "plant 3 of 3, local gains" in shown and "a wall at [0.05, inf] rad" in shown
+    assert "plant 2 of 3, remote arm" in shown  # the others by what differs from the first
+    assert "plant 2 of 3, local arm" not in shown and "plant 3 of 3, remote arm" not in shown
 
 
 def test_simulate_says_which_plant_the_seed_drew(setup, tmp_path):
