@@ -64,13 +64,15 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
             show_progress: bool, workers: int | None, setup: Setup) -> int:
     """Certify that every remote gain in the ranges is stable for the delay bounds.
 
-    It answers for the setup's plant (the paper's by default) and names it. The answer says
+    It answers for the setup's plant (the paper's by default; a setup's several plants
+    together, by the closed form) and names it. The answer says
     what it covers: the gain class in plain words and every assumption (see the
     documentation's "What is certified" page).
     """
     from teleopkit.certification import best_certificate, certify_all, methods_for
     from teleopkit.certification.gain_sets import GainBox, parse_range
     from teleopkit.certification.report import certificate_table, plant_text
+    from teleopkit.certification.verification import cover_plants
     from teleopkit.model.params import PDGains
 
     tl_max = setup.network.forward.max if tl_max is None else tl_max
@@ -81,12 +83,20 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
         if not low < high:  # NaN included
             raise click.BadParameter(f"{low:g} s is not a delay below the upper bound {high:g} s",
                                      param_hint=f"'{option}'")
-    n, local = setup.n_joints, setup.params.local_gains
-    params = replace(setup.params, local_gains=PDGains(
-        local.stiffness if kl is None else (kl,) * n, local.damping if bl is None else (bl,) * n))
+    n = setup.n_joints
+    plants = [replace(plant, local_gains=PDGains(
+        plant.local_gains.stiffness if kl is None else (kl,) * n,
+        plant.local_gains.damping if bl is None else (bl,) * n)) for plant in setup.plants]
+    params = plants[0]
+    if len(plants) > 1 and method != "nuno":
+        raise click.BadParameter(f"the setup has {len(plants)} plants: the closed form (nuno) "
+                                 "certifies them together, an LMI certificate is one plant's",
+                                 param_hint="'--method'")
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"), n)
     if not as_json:
-        click.echo(f"plant: {plant_text(params)}")
+        others = (f" (and {len(plants) - 1} other plants, certified with it)"
+                  if len(plants) > 1 else "")
+        click.echo(f"plant: {plant_text(params)}{others}")
     proven: list[GainCertificate] = []
     if "lmi" in methods_for(method, variation) and not as_json:
         click.echo("closed form (instant; the LMI answer follows):")
@@ -104,6 +114,7 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
             results = certify_all(params, box, tl_max, tr_max, method, variation,
                                   tl_min, tr_min, workers=workers, cache=cache,
                                   on_proven=improved)
+        results = [cover_plants(result, plants) for result in results]
     except KeyboardInterrupt:
         if proven:
             _answer([proven[-1]], as_json, setup,

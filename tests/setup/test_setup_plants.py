@@ -193,3 +193,19 @@ def test_simulate_says_which_plant_the_seed_drew(setup, tmp_path):
                           check=True).stdout
     drawn = setup.scenarios(1, 1).plant_of[0]
     assert f"(plant {drawn + 1} of 3)" in said
+
+
+def test_certify_answers_for_every_plant_of_the_setup(tmp_path):
+    """The closed form's JSON covers the three plants; the LMI is refused in one line."""
+    path = tmp_path / "plants.yaml"
+    path.write_text(PLANTS)
+    command = [sys.executable, "-m", "teleopkit.cli", "certify", "--setup", str(path), "--kr",
+               "1:10", "--br", "30:60"]
+    answer = json.loads(subprocess.run([*command, "--json"], capture_output=True, text=True,
+                                       check=True).stdout)
+    certificate = load_certificate(json.dumps(answer))
+    certificate.check(Setup.from_file(path).plants)
+    assert answer["certified"] and len(answer["other_plants"]) == 2
+    refused = subprocess.run([*command, "--method", "lmi"], capture_output=True, text=True)
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    assert "the setup has 3 plants" in refused.stderr and "Traceback" not in refused.stderr
