@@ -8,6 +8,7 @@ again for each, gives the same set.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -71,6 +72,17 @@ def test_one_plant_writes_and_fingerprints_as_before():
     assert paper.plants == (paper.params,)
     assert Setup.from_data({"plant": [paper.to_data()["plant"]]}).fingerprint \
         == paper.fingerprint
+
+
+@pytest.mark.parametrize(("plant", "message"), [
+    ([], "plant: must be a non-empty list"),
+    (["free"], "plant[0]: must be a mapping"),
+    ([{"local_arm": {"lengths": [0.3], "masses": [1.0]}},
+      {"remote_arm": {"lengths": [0.3], "masses": [1.0]}}], "plant[1]: missing key 'local_arm'"),
+])
+def test_a_bad_list_of_plants_names_the_entry(plant, message):
+    with pytest.raises(SetupError, match=re.escape(message)):
+        Setup.from_data({"plant": plant})
 
 
 def test_plants_of_other_sizes_are_refused_in_one_line():
