@@ -28,6 +28,9 @@ from teleopkit.model.params import TeleoperatorParams, plant_params, plant_recor
 
 __all__ = ["check_certificate", "cover_plants", "load_certificate", "verify_certificate"]
 
+_ONE_PLANT = ("an LMI certificate is for one plant; certify several with the closed form "
+              "(method nuno)")
+
 
 def _plain(data: Any) -> Any:
     """``data`` as JSON reads it back (tuples become lists)."""
@@ -82,8 +85,7 @@ def check_certificate(certificate: GainCertificate) -> None:
             _check_closed_form(certificate, plant)
         return
     if certificate.other_plants:
-        raise ValueError("an LMI certificate is for one plant; certify several with the closed "
-                         "form (method nuno)")
+        raise ValueError(_ONE_PLANT)
     from teleopkit.certification.lmi.verdict import check_lmi  # cvxpy: only when asked for
 
     check_lmi(certificate)
@@ -165,8 +167,7 @@ def cover_plants(certificate: GainCertificate,
     if not missing:
         return certificate
     if certificate.method != "nuno":
-        raise ValueError("an LMI certificate is for one plant; certify several with the closed "
-                         "form (method nuno)")
+        raise ValueError(_ONE_PLANT)
     extended = replace(certificate, other_plants=(*certificate.other_plants,
                                                   *(plant_record(params) for params in missing)))
     for record in extended.other_plants[len(certificate.other_plants):]:
@@ -176,4 +177,3 @@ def cover_plants(certificate: GainCertificate,
             raise ValueError("the closed form certifies another set for one of the plants (its "
                              "local gains differ): certify each plant on its own") from None
     return extended
-

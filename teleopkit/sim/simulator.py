@@ -121,6 +121,8 @@ class Simulator:
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
         for params in scenario.plants:
             check_step(params, dt, control_period)
+        # the motor damping a step integrates stably scales with the smallest rotor inertia
+        self._lightest_rotors = min(scenario.plants, key=lambda p: min(p.joints.rotor_inertia))
         self.scenario = scenario
         self.batch = scenario.batch
         self.n_joints = scenario.params.n_joints
@@ -140,9 +142,8 @@ class Simulator:
         """:func:`check_gains`, and motor damping the step integrates stably."""
         gains = check_gains(gains, self.n_joints)
         if gains.size:
-            for params in self.scenario.plants:
-                check_motor_damping(params, self.dt, gains[..., self.n_joints:].max(),
-                                    "remote damping B_r", self.control_period)
+            check_motor_damping(self._lightest_rotors, self.dt, gains[..., self.n_joints:].max(),
+                                "remote damping B_r", self.control_period)
         return gains
 
     @property
