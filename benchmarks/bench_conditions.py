@@ -6,15 +6,16 @@ Run from the repository root (a few minutes per family; comparators are cached):
         [--scenarios 32] [--out runs/conditions]
 
 Every family is a setup (plant, network, operator, start) that differs from the paper's in one
-way; the last two, their mixtures, draw the conditions of several families independently per
-scenario (a user's varied day: there no constant gains or schedule fits every run, and feedback
-has something to find), the second with the plant of each scenario drawn too (the paper's, the
-heavier softer arm, the wall). For each family and tuner it runs ``compare``: the tuner, the best
-constant gains of the frozen class on its certificate's box (``best static``, the reference),
-those of the tuner's class, the tuned semi-active law and the tuner's own mean schedule
-replayed open loop, all searched for that family on its training scenarios (never on the
-held-out ones), on the same held-out scenarios. A gain law runs moved onto the family's
-certificate where that set differs from the one it was searched under
+way (one draws each scenario's remote plant from ranges: :data:`PLANT_RANGES`); the last three,
+their mixtures, draw the conditions of several families independently per scenario (a user's
+varied day: there no constant gains or schedule fits every run, and feedback has something to
+find), the second with the plant of each scenario drawn too (the paper's, the heavier softer
+arm, the wall), the third with it drawn from :data:`PLANT_RANGES`. For each family and tuner it
+runs ``compare``: the tuner, the best constant gains of the frozen class on its certificate's
+box (``best static``, the reference), those of the tuner's class, the tuned semi-active law and
+the tuner's own mean schedule replayed open loop, all searched for that family on its training
+scenarios (never on the held-out ones), on the same held-out scenarios. A gain law runs moved
+onto the family's certificate where that set differs from the one it was searched under
 (:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays). It prints, per family and
 tuner, the mean cost and the paired differences (per scenario, mean and standard error) against
 the family's best static gains of both classes and the tuner's open-loop schedule (the
@@ -56,7 +57,14 @@ from teleopkit.setup.operator import OperatorSetup
 PAPER = Setup.paper()
 MIXTURE = "mixture of the families"
 PLANT_MIXTURE = "mixture with three plants"
-MIXTURES = (MIXTURE, PLANT_MIXTURE)
+RANGE_MIXTURE = "mixture with plants from ranges"
+MIXTURES = (MIXTURE, PLANT_MIXTURE, RANGE_MIXTURE)
+PLANT_RANGES = {"remote_arm": {"lengths": [0.38, 0.38],
+                               "masses": {"min": [0.4, 0.28], "max": [0.75, 0.5]}},
+                "joints": {"stiffness": {"min": [60.0, 60.0], "max": [150.0, 150.0]},
+                           "rotor_inertia": {"min": [0.2, 0.2], "max": [0.4, 0.4]}}}
+"""Remote link masses from 80 % to 150 % of the paper's, joint stiffness from 60 to 150 N m/rad,
+rotor inertia from 0.2 to 0.4 kg m^2: a plant drawn per scenario, each value on its own."""
 
 
 def _motion(kind: str, **settings: object) -> Callable[[Setup], Setup]:
@@ -157,6 +165,13 @@ def _plant_mixture(folder: Path) -> Setup:
     return replace(mixture, other_plants=(_plant(PAPER).params, _wall(PAPER).params))
 
 
+def _ranged(setup: Setup) -> Setup:
+    """``setup`` with its remote plant drawn per scenario from :data:`PLANT_RANGES`."""
+    data = setup.to_data()
+    data["plant"] = {**data["plant"], **PLANT_RANGES}
+    return Setup.from_data(data, setup.base)
+
+
 def families(folder: Path) -> dict[str, Setup]:
     """The condition families, each the paper's setup changed in one way (or two), and their
     mixture."""
@@ -181,11 +196,13 @@ def families(folder: Path) -> dict[str, Setup]:
         "random starts": both(_start(spread=0.5)),
         "wall, operator that does not decay": both(_wall, _sines(decays=still)),
         "heavier, softer remote arm": both(_plant),
+        "remote plant drawn from ranges": both(_ranged),
         "constant delays 0.3 s": both(_delays("constant:0.3")),
         "switching delays 0-1 s": both(_delays("switching:0:1:50ms")),
         "recorded-style delay trace": both(_trace(folder)),
         MIXTURE: _mixture(folder),
         PLANT_MIXTURE: _plant_mixture(folder),
+        RANGE_MIXTURE: _ranged(_mixture(folder)),
     }
 
 
@@ -195,7 +212,7 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     frames, rows = [], []
     variation = policy_certificate(next(iter(tuners.values()))).gain_variation
     certificate = default_certificate(setup.params, setup.network.reached_bounds, variation,
-                                      setup.plants)
+                                      setup.plants, setup.ranges)
     config = evaluation_config(certificate, setup)
     tuners = {label: law_under(policy, config) for label, policy in tuners.items()}
     first = next(iter(tuners.values()))

@@ -143,6 +143,21 @@ print(f"{len(covering.other_plants) + 1} plants under one certificate; the plant
       f"scenario: {batch.plant_of.tolist()}")
 
 # %%
+# A value known only within bounds (a payload, a joint's stiffness) is a range,
+# ``{min: [...], max: [...]}`` per joint, on the remote arm's and the joints' entries: every
+# scenario draws its own plant inside it, and the certificate records the range and covers
+# every plant of it (the closed form is derived again at both ends).
+payload = {**data["plant"], "remote_arm": {**data["plant"]["remote_arm"],
+                                           "masses": {"min": [0.6, 0.4], "max": [1.2, 0.9]}}}
+uncertain = tk.Setup.from_data({**data, "plant": payload}, folder)
+ranged = default_certificate(uncertain.params, uncertain.network.reached_bounds,
+                             COVERING_CLASS, uncertain.plants, uncertain.ranges)
+drawn = uncertain.scenarios(0, batch=4).plants
+ranged.check(drawn, *uncertain.network.reached_bounds)
+print("remote masses drawn for four scenarios:",
+      [[round(m, 3) for m in plant.remote_arm.masses] for plant in drawn])
+
+# %%
 # Train
 # -----
 # The environments draw their episodes from the setup: its plant, its two delay traces, its

@@ -26,6 +26,7 @@ from teleopkit.certification.methods import best_certificate, certify_with, meth
 from teleopkit.certification.question import Question
 from teleopkit.certification.verification import cover_plants
 from teleopkit.model.params import TeleoperatorParams, paper_setup
+from teleopkit.model.plant_range import PlantRange
 from teleopkit.progress import reports_progress
 
 __all__ = ["DEFAULT_BOX", "certify_all", "certify_gains", "default_certificate"]
@@ -132,7 +133,8 @@ def certify_gains(params: TeleoperatorParams, box: GainBox, tl_max: float = 1.0,
 def default_certificate(params: TeleoperatorParams | None = None,
                         delay_bound: float | tuple[float, float] = 1.0,
                         variation: GainVariation | str = "frozen",
-                        plants: Sequence[TeleoperatorParams] = ()) -> GainCertificate:
+                        plants: Sequence[TeleoperatorParams] = (),
+                        ranges: Sequence[PlantRange] = ()) -> GainCertificate:
     """Closed-form certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
 
     The box itself is not certified (at ``K_r = 50`` it needs ``B_r >= 125`` for 1 s delays);
@@ -151,6 +153,8 @@ def default_certificate(params: TeleoperatorParams | None = None,
     plants : sequence of TeleoperatorParams, optional
         Further plants to cover (a setup's :attr:`~teleopkit.setup.Setup.plants`):
         :func:`~teleopkit.certification.verification.cover_plants`.
+    ranges : sequence of PlantRange, optional
+        The range of each of ``plants`` (a setup's :attr:`~teleopkit.setup.Setup.ranges`).
 
     Returns
     -------
@@ -163,4 +167,4 @@ def default_certificate(params: TeleoperatorParams | None = None,
                          else (delay_bound, delay_bound))
     certificate = certify_gains(params, box, forward, backward, method="nuno",
                                 variation=variation)
-    return cover_plants(certificate, plants) if plants else certificate
+    return cover_plants(certificate, plants, ranges) if plants else certificate

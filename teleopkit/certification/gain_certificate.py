@@ -21,7 +21,8 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.nuno.guarantee import StorageGuarantee, storage_guarantee
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
-from teleopkit.model.params import InitialState, TeleoperatorParams, plant_mismatch, plant_params
+from teleopkit.model.params import InitialState, TeleoperatorParams, plant_params
+from teleopkit.model.plant_range import PlantRange
 
 __all__ = ["GainCertificate"]
 
@@ -64,6 +65,10 @@ class GainCertificate:
         Further plants the same verdict is certified for (a closed-form certificate derived
         again for each gives the same set:
         :func:`~teleopkit.certification.verification.cover_plants`); empty for one plant.
+    plant_ranges : tuple of mapping
+        The range of each plant of ``(plant, *other_plants)`` (a
+        :meth:`~teleopkit.model.plant_range.PlantRange.to_record`, empty for none): the
+        certificate covers every plant of those ranges. Empty when no plant has one.
     """
 
     certified: bool
@@ -80,6 +85,7 @@ class GainCertificate:
     plant: Mapping[str, Any] = field(default_factory=dict)
     delay_lower: tuple[float, float] = (0.0, 0.0)
     other_plants: tuple[Mapping[str, Any], ...] = ()
+    plant_ranges: tuple[Mapping[str, Any], ...] = ()
     _variation: GainVariation = field(init=False, repr=False, compare=False)
     _scheduled: ScheduledSet | None = field(init=False, repr=False, compare=False)
 
@@ -89,6 +95,13 @@ class GainCertificate:
         object.__setattr__(self, "plant", MappingProxyType(dict(self.plant)))
         object.__setattr__(self, "other_plants", tuple(MappingProxyType(dict(record))
                                                        for record in self.other_plants))
+        ranges = tuple(PlantRange.from_record(record) for record in self.plant_ranges)
+        if ranges and len(ranges) != 1 + len(self.other_plants):
+            raise ValueError(f"plant_ranges has {len(ranges)} entries for "
+                             f"{1 + len(self.other_plants)} plants")
+        object.__setattr__(self, "plant_ranges", tuple(
+            MappingProxyType(interval.to_record()) for interval in ranges)
+            if any(ranges) else ())
         # the parsed forms are computed once, here (a bad class or set fails at construction)
         object.__setattr__(self, "_variation", parse_gain_variation(self.gain_variation))
         data = self.details.get("set")
@@ -133,8 +146,14 @@ class GainCertificate:
         data = self.details.get("storage")
         return None if data is None else ScheduledStorage.from_details(data)
 
+    @property
+    def ranges(self) -> tuple[PlantRange, ...]:
+        """The range of each recorded plant, ``(plant, *other_plants)`` (empty where none)."""
+        return tuple(PlantRange.from_record(record) for record in self.plant_ranges) or (
+            (PlantRange(),) * (1 + len(self.other_plants)))
+
     def covers_plant(self, params: TeleoperatorParams) -> bool:
-        """Whether ``params`` is the certified plant or one of :attr:`other_plants`.
+        """Whether ``params`` is one of the recorded plants, or lies in the range of one.
 
         Parameters
         ----------
@@ -144,10 +163,10 @@ class GainCertificate:
         Returns
         -------
         bool
-            True when one of the recorded plants is ``params``.
+            True when one of the recorded plants (or ranges) holds ``params``.
         """
-        return any(plant_mismatch(record, params) is None
-                   for record in (self.plant, *self.other_plants))
+        return any(interval.covers(record, params) for record, interval in
+                   zip((self.plant, *self.other_plants), self.ranges, strict=True))
 
     def check(self, params: TeleoperatorParams | Sequence[TeleoperatorParams],
               forward_bound: float | None = None, backward_bound: float | None = None,
@@ -171,13 +190,15 @@ class GainCertificate:
         """
         if not self.plant:
             raise ValueError("the certificate names no plant; certify again with this teleopkit")
+        records = (self.plant, *self.other_plants)
+        # a refusal names the difference from the first plant with a range, else the first
+        shown = next((k for k, interval in enumerate(self.ranges) if interval), 0)
         for plant in (params,) if isinstance(params, TeleoperatorParams) else params:
             if not self.covers_plant(plant):
-                mismatch = plant_mismatch(self.plant, plant)
-                raise ValueError(mismatch if not self.other_plants else
-                                 f"the plant is none of the certificate's "
-                                 f"{1 + len(self.other_plants)} plants (against the first: "
-                                 f"{mismatch})")
+                mismatch = self.ranges[shown].mismatch(records[shown], plant)
+                raise ValueError(mismatch if len(records) == 1 else
+                                 f"the plant is none of the certificate's {len(records)} plants "
+                                 f"or their ranges (against plant {shown + 1}: {mismatch})")
         for name, bound, certified in (("forward", forward_bound, self.delay_bounds[0]),
                                        ("backward", backward_bound, self.delay_bounds[1])):
             if bound is not None and bound > certified:
@@ -211,6 +232,8 @@ class GainCertificate:
             "delay_lower": list(self.delay_lower),
             **({"other_plants": [dict(record) for record in self.other_plants]}
                if self.other_plants else {}),
+            **({"plant_ranges": [dict(record) for record in self.plant_ranges]}
+               if self.plant_ranges else {}),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -266,7 +289,8 @@ class GainCertificate:
                 assumptions=tuple(data["assumptions"]), violation=data["violation"],
                 details=dict(data["details"]), plant=dict(data.get("plant", {})),
                 delay_lower=_delay_lower(data.get("delay_lower", (0.0, 0.0))),
-                other_plants=tuple(dict(record) for record in data.get("other_plants", ())))
+                other_plants=tuple(dict(record) for record in data.get("other_plants", ())),
+                plant_ranges=tuple(dict(record) for record in data.get("plant_ranges", ())))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
 

@@ -25,6 +25,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.methods import certify_with
 from teleopkit.certification.question import Question
 from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
+from teleopkit.model.plant_range import PlantRange
 
 __all__ = ["check_certificate", "cover_plants", "load_certificate", "verify_certificate"]
 
@@ -81,10 +82,12 @@ def check_certificate(certificate: GainCertificate) -> None:
     if certificate.method not in ("nuno", "lmi"):
         raise ValueError(f"unknown certificate method {certificate.method!r}")
     if certificate.method == "nuno":
-        for plant in (None, *certificate.other_plants):
-            _check_closed_form(certificate, plant)
+        for record, interval in zip((certificate.plant, *certificate.other_plants),
+                                    certificate.ranges, strict=True):
+            for plant in _checked_plants(record, interval):
+                _check_closed_form(certificate, plant)
         return
-    if certificate.other_plants:
+    if certificate.other_plants or certificate.plant_ranges:
         raise ValueError(_ONE_PLANT)
     from teleopkit.certification.lmi.verdict import check_lmi  # cvxpy: only when asked for
 
@@ -136,14 +139,21 @@ def load_certificate(text: str) -> GainCertificate:
     return certificate
 
 
-def cover_plants(certificate: GainCertificate,
-                 plants: Sequence[TeleoperatorParams]) -> GainCertificate:
+def _checked_plants(record: Mapping[str, Any], interval: PlantRange) -> list[dict[str, Any]]:
+    """The plant records a closed form is derived again for: the plant, and its range's ends."""
+    if not interval:
+        return [dict(record)]
+    return [dict(record), *(plant_record(end) for end in interval.corners(plant_params(record)))]
+
+
+def cover_plants(certificate: GainCertificate, plants: Sequence[TeleoperatorParams],
+                 ranges: Sequence[PlantRange] = ()) -> GainCertificate:
     """The certificate extended to every plant of ``plants``, where its verdict holds for each.
 
     The closed form's set depends on the plant only through the local gains ``K_l, B_l`` (its
     storage holds for any elastic-joint arms, passive operator and environment): derived again
-    for each further plant, it must give the same verdict, set and details, else the plants
-    need certificates of their own.
+    for each further plant (and for both ends of its range), it must give the same verdict, set
+    and details, else the plants need certificates of their own.
 
     Parameters
     ----------
@@ -151,6 +161,8 @@ def cover_plants(certificate: GainCertificate,
         A closed-form certificate (method ``"nuno"``) for one of the plants.
     plants : sequence of TeleoperatorParams
         The plants to cover (for example :attr:`teleopkit.setup.Setup.plants`).
+    ranges : sequence of PlantRange, optional
+        The range of each plant (:attr:`teleopkit.setup.Setup.ranges`); none by default.
 
     Returns
     -------
@@ -163,16 +175,33 @@ def cover_plants(certificate: GainCertificate,
     ValueError
         One line: an LMI certificate for several plants, or a plant the set differs for.
     """
-    missing = [params for params in plants if not certificate.covers_plant(params)]
+    ranges = tuple(ranges) or (PlantRange(),) * len(plants)
+    missing = [(params, interval) for params, interval in zip(plants, ranges, strict=True)
+               if not all(certificate.covers_plant(end) for end in
+                          (params, *interval.corners(params)))]
     if not missing:
         return certificate
     if certificate.method != "nuno":
         raise ValueError(_ONE_PLANT)
-    extended = replace(certificate, other_plants=(*certificate.other_plants,
-                                                  *(plant_record(params) for params in missing)))
-    for record in extended.other_plants[len(certificate.other_plants):]:
+    records = [dict(record) for record in (certificate.plant, *certificate.other_plants)]
+    intervals = list(certificate.ranges)
+    added = []
+    for params, interval in missing:
+        record = plant_record(params)
+        same = [k for k, known in enumerate(records)
+                if known.get("fingerprint") == record["fingerprint"] and not intervals[k]]
+        if same:  # a recorded plant gets its range
+            intervals[same[0]] = interval
+        else:
+            records.append(record)
+            intervals.append(interval)
+        added.append((record, interval))
+    extended = replace(certificate, other_plants=tuple(records[1:]),
+                       plant_ranges=tuple(interval.to_record() for interval in intervals))
+    for record, interval in added:
         try:
-            _check_closed_form(extended, record)
+            for plant in _checked_plants(record, interval):
+                _check_closed_form(extended, plant)
         except ValueError:
             raise ValueError("the closed form certifies another set for one of the plants (its "
                              "local gains differ): certify each plant on its own") from None

@@ -88,14 +88,16 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
         plant.local_gains.stiffness if kl is None else (kl,) * n,
         plant.local_gains.damping if bl is None else (bl,) * n)) for plant in setup.plants]
     params = plants[0]
-    if len(plants) > 1 and method != "nuno":
-        raise click.BadParameter(f"the setup has {len(plants)} plants: the closed form (nuno) "
-                                 "certifies them together, an LMI certificate is one plant's",
+    if (len(plants) > 1 or setup.plant_ranges) and method != "nuno":
+        what = f"{len(plants)} plants" if len(plants) > 1 else "a plant with ranges"
+        raise click.BadParameter(f"the setup has {what}: the closed form (nuno) certifies them "
+                                 "together, an LMI certificate is one plant's",
                                  param_hint="'--method'")
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"), n)
     if not as_json:
         others = (f" (and {len(plants) - 1} other plants, certified with it)"
                   if len(plants) > 1 else "")
+        others += " (and every plant of its ranges)" if setup.plant_ranges else ""
         click.echo(f"plant: {plant_text(params)}{others}")
     proven: list[GainCertificate] = []
     if "lmi" in methods_for(method, variation) and not as_json:
@@ -114,7 +116,7 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
             results = certify_all(params, box, tl_max, tr_max, method, variation,
                                   tl_min, tr_min, workers=workers, cache=cache,
                                   on_proven=improved)
-        results = [cover_plants(result, plants) for result in results]
+        results = [cover_plants(result, plants, setup.ranges) for result in results]
     except KeyboardInterrupt:
         if proven:
             _answer([proven[-1]], as_json, setup,

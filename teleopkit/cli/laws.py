@@ -90,7 +90,7 @@ def _law_certificate(variation: object, certificate: Path | None,
     chosen = (read_certificate(certificate) if certificate is not None else
               default_certificate(setup.params, network.reached_bounds,
                                   variation or COVERING_CLASS,  # type: ignore[arg-type]
-                                  setup.plants))
+                                  setup.plants, setup.ranges))
     chosen.check(setup.plants, *network.reached_bounds, network.reached_floors)
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen

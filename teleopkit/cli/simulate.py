@@ -16,6 +16,9 @@ from teleopkit.cli.options import (
     gains,
     setup_option,
 )
+from teleopkit.model.params import PLANT_LABELS
+from teleopkit.model.plant_range import value_of
+from teleopkit.setup.reading import listed
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
 if TYPE_CHECKING:
@@ -87,13 +90,24 @@ def simulate_command(kr: list[float], br: list[float], duration: float, delay: s
                         title=f"K_r = {kr}, B_r = {br}, delay {spec}{scaled}")
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
-    which = ""
-    if setup.other_plants:  # the seed drew one of the plants
-        which = (f" (plant {setup.scenarios(seed, 1, delay).plant_of[0] + 1} of "
-                 f"{len(setup.plants)})")
-    click.echo(f"wrote {len(trajectory.t)} rows to {out}{which}; RMS tracking error {rms:.4g} "
-               "rad")
+    click.echo(f"wrote {len(trajectory.t)} rows to {out}{_drawn_plant(setup, seed, delay)}; "
+               f"RMS tracking error {rms:.4g} rad")
     _warn_beyond_margin(setup, action, float(trajectory.delays.max()))
+
+
+def _drawn_plant(setup: Setup, seed: int, delay: str | None) -> str:
+    """Which plant the seed drew, and its ranged values (empty for one fixed plant)."""
+    if not (setup.other_plants or setup.plant_ranges):
+        return ""
+    scenario = setup.scenarios(seed, 1, delay)
+    drawn = scenario.plants[scenario.plant_of[0]]
+    k = next(k for k, (params, interval) in enumerate(zip(setup.plants, setup.ranges,
+                                                          strict=True))
+             if interval.covers(params, drawn))
+    parts = [f"plant {k + 1} of {len(setup.plants)}"] if setup.other_plants else []
+    parts += [f"{PLANT_LABELS[name]} {listed(value_of(drawn, name))}"
+              for name in setup.ranges[k].bounds]
+    return f" ({'; '.join(parts)})"
 
 
 def _per_joint(values: list[float], n: int, option: str) -> list[float]:

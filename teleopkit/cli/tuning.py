@@ -136,7 +136,8 @@ def _training_certificate(out: Path, resume: bool, variation: object,
         chosen = read_certificate(certificate)
     elif variation is not None or not (resume and (out / CERTIFICATE).is_file()):
         chosen = default_certificate(config.params, bounds, variation or COVERING_CLASS,
-                                     config.setup.plants)  # type: ignore[arg-type]
+                                     config.setup.plants,  # type: ignore[arg-type]
+                                     config.setup.ranges)
     else:
         chosen = read_certificate(out / CERTIFICATE)
     _check_certificate(chosen, config)

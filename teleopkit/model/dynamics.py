@@ -31,6 +31,7 @@ __all__ = [
     "elastic_arm_energy",
     "inertia_coefficients",
     "kinetic_energy",
+    "mass_from_coefficients",
     "mass_from_cosines",
     "mass_matrix",
     "mass_matrix_derivative",
@@ -96,8 +97,26 @@ def mass_matrix(arm: PlanarArm, q: np.ndarray) -> np.ndarray:
     ndarray, shape (..., n, n)
         Symmetric positive definite inertia matrix.
     """
+    return mass_from_coefficients(inertia_coefficients(arm), q)
+
+
+def mass_from_coefficients(coefficients: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Inertia matrix ``M(q)`` from the arm's :func:`inertia_coefficients`.
+
+    Parameters
+    ----------
+    coefficients : ndarray, shape (n, n) or (..., n, n)
+        Inertia coefficients: one arm's, or one per entry of a batch of arms.
+    q : ndarray, shape (..., n)
+        Joint angles.
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+        Symmetric positive definite inertia matrix.
+    """
     phi = _absolute(np.asarray(q, dtype=float))
-    return mass_from_cosines(arm, np.cos(phi[..., :, None] - phi[..., None, :]))
+    return _to_joint(coefficients * np.cos(phi[..., :, None] - phi[..., None, :]))
 
 
 def mass_from_cosines(arm: PlanarArm, cosines: np.ndarray) -> np.ndarray:

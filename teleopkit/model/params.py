@@ -19,6 +19,7 @@ from typing import Any, Literal
 import numpy as np
 
 __all__ = [
+    "PLANT_LABELS",
     "ElasticJoints",
     "InitialState",
     "Operator",
@@ -436,7 +437,7 @@ def one_joint_setup() -> TeleoperatorParams:
         initial=InitialState((-0.2,), (-0.1,), (0.0,)))
 
 
-_PLANT_LABELS = {
+PLANT_LABELS: dict[str, str] = {
     "local_arm.lengths": "local arm lengths", "local_arm.masses": "local arm masses",
     "remote_arm.lengths": "remote arm lengths", "remote_arm.masses": "remote arm masses",
     "local_arm.com": "local arm centres of mass", "local_arm.inertia": "local arm link inertias",
@@ -447,6 +448,7 @@ _PLANT_LABELS = {
     "operator.stiffness": "operator stiffness K_s", "operator.damping": "operator damping K_d",
     "environment": "environment",
 }
+"""What a plant record's entries (``part.field``) are called in messages."""
 
 
 def json_ready(value: Any) -> Any:
@@ -541,7 +543,7 @@ def plant_mismatch(certified: Mapping[str, Any], params: TeleoperatorParams) -> 
     mine, theirs = _flatten(actual), _flatten(certified)
     for name, value in mine.items():
         if name != "fingerprint" and theirs.get(name) != value:
-            label = _PLANT_LABELS.get(name, name)
+            label = PLANT_LABELS.get(name, name)
             return (f"the certificate is for {label} = {theirs.get(name)}, the plant has "
                     f"{value}")
     return "the certificate's plant fingerprint does not match its recorded plant"

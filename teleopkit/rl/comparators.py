@@ -93,13 +93,15 @@ def frozen_counterpart(certificate: GainCertificate, params: TeleoperatorParams
     -------
     GainCertificate
         ``certificate`` itself if it is a closed-form certificate of the frozen class; else the
-        frozen one, covering the same further plants.
+        frozen one, covering the same further plants and ranges.
     """
     if certificate.gain_variation == "frozen" and certificate.method == "nuno":
         return certificate
     frozen = certify_gains(params, certificate.box, *certificate.delay_bounds, method="nuno",
                            variation="frozen")
-    return cover_plants(frozen, [plant_params(record) for record in certificate.other_plants])
+    return cover_plants(frozen, [plant_params(record) for record in
+                                 (certificate.plant, *certificate.other_plants)],
+                        certificate.ranges)
 
 
 def policy_observation(policy: GainPolicy) -> str:
@@ -388,13 +390,14 @@ def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
     -------
     FlexTeleopConfig
         The settings; a closed-form certificate of the setup's first plant is extended to its
-        other plants (:func:`~teleopkit.certification.verification.cover_plants`).
+        other plants and the ranges of its plants
+        (:func:`~teleopkit.certification.verification.cover_plants`).
     """
     setup = setup if setup is not None else Setup.paper()
     if delay is not None:
         setup = setup.with_delay(delay)
-    if setup.other_plants and certificate.covers_plant(setup.params):
-        certificate = cover_plants(certificate, setup.other_plants)
+    if (setup.other_plants or setup.plant_ranges) and certificate.covers_plant(setup.params):
+        certificate = cover_plants(certificate, setup.plants, setup.ranges)
     return FlexTeleopConfig(setup, certificate, episode_length=duration)
 
 

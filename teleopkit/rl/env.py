@@ -160,7 +160,7 @@ class FlexTeleopConfig:
         if self.certificate is not None:
             return self.certificate
         return default_certificate(self.params, self.setup.network.reached_bounds,
-                                   plants=self.setup.plants)
+                                   plants=self.setup.plants, ranges=self.setup.ranges)
 
 
 def _config(config: FlexTeleopConfig | None, overrides: dict[str, Any]) -> FlexTeleopConfig:

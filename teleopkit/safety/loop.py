@@ -13,7 +13,7 @@ import numpy as np
 
 from teleopkit.delays.profiles import delay_floor
 from teleopkit.safety.layer import Projection, SafetyLayer
-from teleopkit.sim.energy import motor_speed_integral, remote_energy
+from teleopkit.sim.energy import BatchRemoteEnergy, motor_speed_integral
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.trajectory import StepResult, Trajectory
 
@@ -46,6 +46,7 @@ class CertifiedLoop:
         self.unsafe_actions = 0
         self.unsafe_by_run = np.zeros(0, dtype=np.int64)
         self._simulator: Simulator | None = None
+        self._energy: BatchRemoteEnergy | None = None  # the tank's measurement, set at start
 
     @property
     def simulator(self) -> Simulator:
@@ -82,6 +83,8 @@ class CertifiedLoop:
                               (delay_floor(scenario.forward), delay_floor(scenario.backward)))
         simulator.reset()
         self._simulator = simulator
+        self._energy = (BatchRemoteEnergy.of(simulator.scenario) if self.layer.measures_energy
+                        else None)
         self.unsafe_by_run = np.zeros(simulator.batch, dtype=np.int64)
         self.layer.reset()
         state = simulator.state
@@ -90,9 +93,8 @@ class CertifiedLoop:
 
     def _measure(self, state: np.ndarray) -> None:
         """Hand the layer the measurements its tank is paid from (if it keeps one)."""
-        if self.layer.measures_energy:
-            self.layer.observe(self.simulator.scenario.per_plant(remote_energy, state),
-                               motor_speed_integral(state))
+        if self._energy is not None:
+            self.layer.observe(self._energy(state), motor_speed_integral(state))
 
     def step(self, raw: np.ndarray) -> tuple[StepResult, Projection]:
         """Project ``raw`` and simulate one control period with the applied gains.

@@ -19,7 +19,10 @@ a user's teleoperator::
 Only ``plant.local_arm`` is required: left-out entries take the paper's values (sized to the
 arm's joints where the paper's have two). ``plant`` may also be a list of plants (the same
 number of joints), each scenario running one of them drawn uniformly: a heavier or softer remote
-arm, a wall. The paper's setup ships as ``paper_setup.yaml`` (:data:`PAPER_SETUP_FILE`).
+arm, a wall. The remote arm's and the joints' values may be ranges, ``{min: [...], max: [...]}``
+per joint (:class:`~teleopkit.model.plant_range.PlantRange`): each scenario draws them
+uniformly, around the nominal plant of their midpoints. The paper's setup ships as
+``paper_setup.yaml`` (:data:`PAPER_SETUP_FILE`).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from teleopkit.model.params import (
+    PLANT_LABELS,
     ElasticJoints,
     PDGains,
     PlanarArm,
@@ -43,6 +47,7 @@ from teleopkit.model.params import (
     Wall,
     json_ready,
 )
+from teleopkit.model.plant_range import Interval, PlantRange
 from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import Node, SetupError, listed, load_document
@@ -60,20 +65,43 @@ PAPER_SETUP_FILE = "paper_setup.yaml"
 _PAPER = TeleoperatorParams()
 
 
-def _per_joint(node: Node | None, default: tuple[float, ...], n: int, **checks: Any
+def _per_joint(node: Node | None, default: tuple[float, ...], n: int,
+               ranges: dict[str, Interval] | None = None, name: str = "", **checks: Any
                ) -> tuple[float, ...]:
     """A per-joint entry, or the paper's value (its first entry repeated for other sizes)."""
     if node is not None:
-        return node.numbers(n, **checks)
+        return _numbers(node, n, ranges, name, **checks)
     return default if len(default) == n else (default[0],) * n
 
 
-def _arm(node: Node, n: int | None) -> PlanarArm:
+def _numbers(node: Node, n: int | None, ranges: dict[str, Interval] | None, name: str,
+             **checks: Any) -> tuple[float, ...]:
+    """Per-joint numbers; where ``ranges`` is given also ``{min, max}`` of them.
+
+    A range is recorded in ``ranges[name]`` and its midpoints returned (the nominal plant).
+    """
+    if not isinstance(node.value, dict):
+        return node.numbers(n, **checks)
+    if ranges is None:
+        raise node.error("a range ({min, max}) is for the remote arm and the joints only")
+    entries = node.fields(("min", "max"), ("min", "max"))
+    low = entries["min"].numbers(n, **checks)
+    high = entries["max"].numbers(len(low), **checks)
+    if any(h < lo for lo, h in zip(low, high, strict=True)):
+        raise node.error(f"max {listed(high)} is below min {listed(low)}")
+    ranges[name] = (low, high)
+    return tuple((lo + h) / 2 for lo, h in zip(low, high, strict=True))
+
+
+def _arm(node: Node, n: int | None, ranges: dict[str, Interval] | None = None,
+         part: str = "") -> PlanarArm:
     entries = node.fields(("lengths", "masses", "com", "inertia"), ("lengths", "masses"))
-    lengths = entries["lengths"].numbers(n, 0.0, strict=True)
-    masses = entries["masses"].numbers(len(lengths), 0.0, strict=True)
-    extra = {key: entries[key].numbers(len(lengths), 0.0) for key in ("com", "inertia")
-             if key in entries}
+    lengths = _numbers(entries["lengths"], n, ranges, f"{part}.lengths", minimum=0.0,
+                       strict=True)
+    masses = _numbers(entries["masses"], len(lengths), ranges, f"{part}.masses", minimum=0.0,
+                      strict=True)
+    extra = {key: _numbers(entries[key], len(lengths), ranges, f"{part}.{key}", minimum=0.0)
+             for key in ("com", "inertia") if key in entries}
     try:
         return PlanarArm(lengths, masses, **extra)
     except (TypeError, ValueError) as error:
@@ -92,25 +120,25 @@ def _environment(node: Node | None, n: int) -> Any:
                 entries["damping"].number(0.0) if "damping" in entries else 5.0)
 
 
-def _plant(node: Node) -> dict[str, Any]:
-    """The model's parts from the ``plant`` entry."""
+def _plant(node: Node) -> tuple[dict[str, Any], PlantRange]:
+    """The model's parts from a ``plant`` entry (ranged values at their midpoints); its ranges."""
     entries = node.fields(("local_arm", "remote_arm", "joints", "local_gains", "environment",
                            "torque_limit"), ("local_arm",))
     local = _arm(entries["local_arm"], None)
     n = local.n_joints
-    remote = _arm(entries["remote_arm"], n) if "remote_arm" in entries else local
+    ranges: dict[str, Interval] = {}
+    remote = _arm(entries["remote_arm"], n, ranges, "remote_arm") if "remote_arm" in entries \
+        else local
     joints = entries["joints"].fields(("stiffness", "rotor_inertia")) if "joints" in entries \
         else {}
     gains = entries["local_gains"].fields(("stiffness", "damping")) if "local_gains" in entries \
         else {}
     limit = entries.get("torque_limit")
-    return {
+    parts = {
         "local_arm": local, "remote_arm": remote,
-        "joints": ElasticJoints(
-            _per_joint(joints.get("stiffness"), _PAPER.joints.stiffness, n, minimum=0.0,
-                       strict=True),
-            _per_joint(joints.get("rotor_inertia"), _PAPER.joints.rotor_inertia, n, minimum=0.0,
-                       strict=True)),
+        "joints": ElasticJoints(*(
+            _per_joint(joints.get(key), getattr(_PAPER.joints, key), n, ranges, f"joints.{key}",
+                       minimum=0.0, strict=True) for key in ("stiffness", "rotor_inertia"))),
         "local_gains": PDGains(
             _per_joint(gains.get("stiffness"), _PAPER.local_gains.stiffness, n, minimum=0.0),
             _per_joint(gains.get("damping"), _PAPER.local_gains.damping, n, minimum=0.0)),
@@ -118,21 +146,30 @@ def _plant(node: Node) -> dict[str, Any]:
         "torque_limit": limit.number(0.0, strict=True, allow_inf=True) if limit is not None
         else _PAPER.torque_limit,
     }
+    return parts, PlantRange(ranges)
 
 
-def _plant_data(p: TeleoperatorParams) -> dict[str, Any]:
-    """A plant as the ``plant`` entry of a setup file (every key written out)."""
+def _plant_data(p: TeleoperatorParams, ranges: PlantRange) -> dict[str, Any]:
+    """A plant as a ``plant`` entry (every key written out; a ranged value as ``{min, max}``)."""
 
-    def arm(value: PlanarArm) -> dict[str, Any]:
-        return {key: list(item) for key, item in asdict(value).items() if item is not None}
+    def values(name: str, value: tuple[float, ...]) -> Any:
+        if name in ranges.bounds:
+            low, high = ranges.bounds[name]
+            return {"min": list(low), "max": list(high)}
+        return list(value)
+
+    def arm(value: PlanarArm, part: str) -> dict[str, Any]:
+        return {key: values(f"{part}.{key}", item) for key, item in asdict(value).items()
+                if item is not None}
 
     environment: Any = "free"
     if isinstance(p.environment, Wall):
         environment = {"wall": list(p.environment.position),
                        "stiffness": p.environment.stiffness, "damping": p.environment.damping}
-    return {"local_arm": arm(p.local_arm), "remote_arm": arm(p.remote_arm),
-            "joints": {"stiffness": list(p.joints.stiffness),
-                       "rotor_inertia": list(p.joints.rotor_inertia)},
+    return {"local_arm": arm(p.local_arm, "local_arm"),
+            "remote_arm": arm(p.remote_arm, "remote_arm"),
+            "joints": {key: values(f"joints.{key}", getattr(p.joints, key))
+                       for key in ("stiffness", "rotor_inertia")},
             "local_gains": {"stiffness": list(p.local_gains.stiffness),
                             "damping": list(p.local_gains.damping)},
             "environment": environment, "torque_limit": p.torque_limit}
@@ -164,6 +201,9 @@ class Setup:
     other_plants : tuple of TeleoperatorParams, optional
         Further plants the scenarios run (each scenario draws one of :attr:`plants`
         uniformly); none by default.
+    plant_ranges : tuple of PlantRange, optional
+        The ranges of each plant of :attr:`plants` (its values there are the midpoints): each
+        scenario draws its plant's ranged values uniformly. Empty when no plant has one.
 
     Examples
     --------
@@ -180,6 +220,7 @@ class Setup:
     start: StartSpec | StartMix = field(default_factory=lambda: StartSpec.fixed(_PAPER.initial))
     base: Path | None = field(default=None, compare=False)
     other_plants: tuple[TeleoperatorParams, ...] = ()
+    plant_ranges: tuple[PlantRange, ...] = ()
 
     def __post_init__(self) -> None:
         n = self.params.n_joints
@@ -189,6 +230,21 @@ class Setup:
         for k, plant in enumerate(self.other_plants, start=1):
             if plant.n_joints != n:
                 raise SetupError(f"plant[{k}]: has {plant.n_joints} joints, the first plant {n}")
+        ranges = tuple(self.plant_ranges) if any(self.plant_ranges) else ()
+        if ranges and len(ranges) != len(self.plants):
+            raise SetupError(f"plant_ranges: {len(ranges)} ranges for {len(self.plants)} plants")
+        for k, (plant, interval) in enumerate(zip(self.plants, ranges, strict=True)
+                                              if ranges else ()):
+            if any(len(low) != n for low, _ in interval.bounds.values()):
+                raise SetupError(f"plant[{k}]: a range needs {n} values per entry")
+            if interval.nominal(plant) != plant:
+                raise SetupError(f"plant[{k}]: its ranged values must be their midpoints")
+        object.__setattr__(self, "plant_ranges", ranges)
+
+    @property
+    def ranges(self) -> tuple[PlantRange, ...]:
+        """The range of each plant of :attr:`plants` (empty ranges where none)."""
+        return self.plant_ranges or (PlantRange(),) * len(self.plants)
 
     @property
     def plants(self) -> tuple[TeleoperatorParams, ...]:
@@ -245,8 +301,8 @@ class Setup:
         root = Path(base) if base is not None else Path.cwd()
         entries = Node(data).fields(("plant", "network", "operator", "start"), ("plant",))
         node = entries["plant"]
-        variants = [_plant(item) for item in (node.items() if isinstance(node.value, list)
-                                              else (node,))]
+        variants, ranges = zip(*(_plant(item) for item in (
+            node.items() if isinstance(node.value, list) else (node,))), strict=True)
         n = variants[0]["local_arm"].n_joints
         for k, parts in enumerate(variants):
             if parts["local_arm"].n_joints != n:
@@ -266,7 +322,7 @@ class Setup:
                 operator=operator.model(n), initial=start.initial()) for parts in variants)
         except ValueError as error:
             raise SetupError(f"plant: {error}") from None
-        return cls(plants[0], Network(*channels), operator, start, root, plants[1:])
+        return cls(plants[0], Network(*channels), operator, start, root, plants[1:], ranges)
 
     @classmethod
     def from_file(cls, path: str | Path) -> Setup:
@@ -308,7 +364,8 @@ class Setup:
             Keys ``plant``, ``network``, ``operator``, ``start``.
         """
         root = Path(base) if base is not None else None
-        plants = [_plant_data(params) for params in self.plants]
+        plants = [_plant_data(params, ranges) for params, ranges in zip(self.plants, self.ranges,
+                                                                        strict=True)]
         return {
             "plant": plants[0] if len(plants) == 1 else plants,
             "network": {"forward": self.network.forward.to_data(root),
@@ -391,6 +448,8 @@ class Setup:
                   ) -> Scenario:
         """Draw ``batch`` scenarios: operator motions, then delays, starts and plants.
 
+        A plant with ranges gives each of its scenarios a plant of its own, drawn last.
+
         Parameters
         ----------
         rng : numpy.random.Generator or int
@@ -418,12 +477,17 @@ class Setup:
                              else delay_pair(delay, rng))
         start = self.start.draw(rng, batch)
         index = rng.integers(len(self.plants), size=batch) if len(self.plants) > 1 else None
-        return Scenario(self.params, forward, backward, gains, motion, start, self.other_plants,
-                        index)
+        if not self.plant_ranges:
+            return Scenario(self.params, forward, backward, gains, motion, start,
+                            self.other_plants, index)
+        drawn = [self.plant_ranges[k].draw(self.plants[k], rng, 1)[0]
+                 for k in (np.zeros(batch, dtype=int) if index is None else index)]
+        return Scenario(drawn[0], forward, backward, gains, motion, start, tuple(drawn[1:]),
+                        np.arange(batch))
 
     def describe(self) -> list[str]:
         """What the setup describes, a line per part, for people."""
-        plants = _describe_plants(self.plants)
+        plants = _describe_plants(self.plants, self.ranges)
         channels = [f"{name} delay: {ch.min:g}-{ch.max:g} s, profile {', '.join(ch.profiles)}"
                     for name, ch in (("forward", self.network.forward),
                                      ("backward", self.network.backward))]
@@ -434,21 +498,22 @@ class Setup:
                 f"fingerprint {self.fingerprint}"]
 
 
-def _describe_plants(plants: tuple[TeleoperatorParams, ...]) -> list[str]:
+def _describe_plants(plants: tuple[TeleoperatorParams, ...],
+                     ranges: tuple[PlantRange, ...]) -> list[str]:
     """The first plant whole, each other one by the lines where it differs from the first."""
-    first = _describe_plant(plants[0])
+    first = _describe_plant(plants[0], ranges[0])
     if len(plants) == 1:
         return first
     lines = [f"plant 1 of {len(plants)}, {line}" for line in first]
-    for k, params in enumerate(plants[1:], start=2):
-        differs = [line for line in _describe_plant(params) if line not in first]
+    for k, (params, interval) in enumerate(zip(plants[1:], ranges[1:], strict=True), start=2):
+        differs = [line for line in _describe_plant(params, interval) if line not in first]
         lines += [f"plant {k} of {len(plants)}, {line}" for line in differs or
                   ["the same as plant 1"]]
     return lines
 
 
-def _describe_plant(p: TeleoperatorParams) -> list[str]:
-    """A plant for people: its arms, joints, local gains and environment."""
+def _describe_plant(p: TeleoperatorParams, ranges: PlantRange) -> list[str]:
+    """A plant for people: its arms, joints, local gains, environment and ranges."""
     arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
             f"{listed(arm.masses)} kg" for name, arm in (("local", p.local_arm),
                                                        ("remote", p.remote_arm))]
@@ -458,7 +523,9 @@ def _describe_plant(p: TeleoperatorParams) -> list[str]:
             f"elastic joints: stiffness {listed(p.joints.stiffness)} N m/rad, rotor inertia "
             f"{listed(p.joints.rotor_inertia)} kg m^2",
             f"local gains: K_l {listed(p.local_gains.stiffness)}, B_l "
-            f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m"]
+            f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
+            *(f"{PLANT_LABELS[name]} drawn per scenario in {listed(low)} to {listed(high)} "
+              f"(nominal: the midpoints)" for name, (low, high) in ranges.bounds.items())]
 
 
 SHIPPED_SETUPS: Mapping[str, str] = MappingProxyType({"paper": PAPER_SETUP_FILE,

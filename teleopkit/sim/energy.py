@@ -10,13 +10,25 @@ from here.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from teleopkit.model.dynamics import elastic_arm_energy, kinetic_energy
+from teleopkit.model.dynamics import (
+    elastic_arm_energy,
+    inertia_coefficients,
+    kinetic_energy,
+    mass_from_coefficients,
+)
 from teleopkit.model.params import TeleoperatorParams, Wall
 from teleopkit.sim.state import StateLayout
 
-__all__ = ["local_energy", "mechanical_energy", "motor_speed_integral", "remote_energy"]
+if TYPE_CHECKING:
+    from teleopkit.sim.scenarios import Scenario
+
+__all__ = ["BatchRemoteEnergy", "local_energy", "mechanical_energy", "motor_speed_integral",
+           "remote_energy"]
 
 
 def remote_energy(params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
@@ -42,6 +54,79 @@ def remote_energy(params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
         depth = np.maximum(0.0, qr - np.array(params.environment.position))
         energy = energy + 0.5 * params.environment.stiffness * np.sum(depth**2, axis=-1)
     return energy
+
+
+@dataclass(frozen=True)
+class BatchRemoteEnergy:
+    """:func:`remote_energy` of a batch whose scenarios run plants of their own, in one pass.
+
+    The plants' constants are gathered per scenario once (:meth:`of`); evaluating the energy of
+    a batch of drawn plants is then one vectorised expression, not a call per plant.
+
+    Parameters
+    ----------
+    coefficients : ndarray, shape (B, n, n)
+        Each scenario's remote :func:`~teleopkit.model.dynamics.inertia_coefficients`.
+    rotor_inertia, stiffness : ndarray, shape (B, n)
+        Each scenario's rotor inertias and joint stiffnesses.
+    wall : ndarray, shape (B, n)
+        Each scenario's wall position per joint (``inf``: no wall).
+    wall_stiffness : ndarray, shape (B,)
+        Each scenario's wall stiffness (0 in free space).
+    """
+
+    coefficients: np.ndarray
+    rotor_inertia: np.ndarray
+    stiffness: np.ndarray
+    wall: np.ndarray
+    wall_stiffness: np.ndarray
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> BatchRemoteEnergy:
+        """The constants of each scenario's plant.
+
+        Parameters
+        ----------
+        scenario : Scenario
+            The batch.
+
+        Returns
+        -------
+        BatchRemoteEnergy
+            Its energy function.
+        """
+        n = scenario.params.n_joints
+        walls = [p.environment if isinstance(p.environment, Wall) else None
+                 for p in scenario.plants]
+        per_plant = [np.array(part) for part in zip(*(
+            (inertia_coefficients(p.remote_arm), p.joints.rotor_inertia, p.joints.stiffness,
+             (np.inf,) * n if wall is None else wall.position,
+             0.0 if wall is None else wall.stiffness)
+            for p, wall in zip(scenario.plants, walls, strict=True)), strict=True)]
+        return cls(*(np.asarray(values, dtype=float)[scenario.plant_of] for values in per_plant))
+
+    def __call__(self, state: np.ndarray) -> np.ndarray:
+        """``E_r`` of each scenario with its plant.
+
+        Parameters
+        ----------
+        state : ndarray, shape (B, 12 n)
+            States.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The energies in joules.
+        """
+        layout = StateLayout.of(state)
+        qr, dqr = layout.get(state, "qr"), layout.get(state, "dqr")
+        mass = mass_from_coefficients(self.coefficients, qr)
+        kinetic = 0.5 * np.einsum("...i,...ij,...j->...", dqr, mass, dqr)
+        rotor = 0.5 * np.sum(self.rotor_inertia * layout.get(state, "dtheta") ** 2, axis=-1)
+        stretch = qr - layout.get(state, "theta")
+        spring = 0.5 * np.sum(self.stiffness * stretch**2, axis=-1)
+        depth = np.maximum(0.0, qr - self.wall)
+        return kinetic + rotor + spring + 0.5 * self.wall_stiffness * np.sum(depth**2, axis=-1)
 
 
 def local_energy(params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:

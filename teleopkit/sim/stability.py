@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from teleopkit.model.dynamics import mass_matrix
-from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.params import PlanarArm, TeleoperatorParams
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
@@ -40,7 +40,6 @@ _LEVELS = 720
 """Configurations searched for the local arm's smallest inertia (spread over the joints)."""
 
 
-@functools.cache
 def local_damping_rate(params: TeleoperatorParams) -> float:
     """Fastest decay rate (1/s) of the local arm's damping over its configurations.
 
@@ -59,16 +58,22 @@ def local_damping_rate(params: TeleoperatorParams) -> float:
     float
         The rate in 1/s.
     """
-    n = params.n_joints
     damping = np.asarray(params.local_gains.damping, dtype=float) + params.operator.damping
+    return _damping_rate(params.local_arm, tuple(damping.tolist()))
+
+
+@functools.cache
+def _damping_rate(arm: PlanarArm, damping: tuple[float, ...]) -> float:
+    """:func:`local_damping_rate` of the local side (cached: drawn plants share it)."""
+    n = arm.n_joints
     if n == 1:
-        return float(damping[0] / mass_matrix(params.local_arm, np.zeros((1, 1)))[0, 0, 0])
+        return float(damping[0] / mass_matrix(arm, np.zeros((1, 1)))[0, 0, 0])
     levels = max(4, round(_LEVELS ** (1.0 / (n - 1))))
     angles = np.linspace(-math.pi, math.pi, 2 * (levels // 2) + 1)  # holds 0 and pi
     grid = np.array(list(itertools.product(angles, repeat=n - 1)))
     q = np.concatenate([np.zeros((len(grid), 1)), grid], axis=1)
-    scale = np.sqrt(damping)
-    inverse = np.linalg.inv(mass_matrix(params.local_arm, q))
+    scale = np.sqrt(np.asarray(damping))
+    inverse = np.linalg.inv(mass_matrix(arm, q))
     rates = np.linalg.eigvalsh(scale[:, None] * inverse * scale[None, :])  # D^1/2 M^-1 D^1/2
     return float(rates.max())
 
