@@ -1,8 +1,10 @@
-"""What knowing the scenario is worth: constant gains chosen per scenario with hindsight.
+"""What knowing the scenario is worth: gains chosen per scenario with hindsight.
 
-Run from the repository root (about a minute per family on one core)::
+Run from the repository root (about a minute per family on one core; with ``--schedules`` a few
+minutes)::
 
     python benchmarks/bench_hindsight.py [--families NAME ...] [--points 14] [--scenarios 32]
+        [--schedules] [--generations 30] [--population 12]
 
 For each condition family of ``bench_conditions.py``: a grid of uniform constant gains (the
 same ``K_r`` on every joint, the same ``B_r``; ``points x points`` over the certificate's box,
@@ -13,6 +15,15 @@ can do knowing it. Printed: the mean cost of the second against the first (diffe
 mean costs, and mean of the per-scenario ratios). A tuner's feedback within a family can only
 beat its own open-loop schedule by telling the family's scenarios apart; where hindsight gains
 little, there is little for it to find.
+
+``--schedules`` asks the same of gain *schedules* under the tuners' class (``tank:3``, every
+gain projected by its safety layer): piecewise-constant uniform gains over the segments that
+start at :data:`SEGMENTS` (short ones first, where the opening transient is), searched by
+CMA-ES once for the family as a whole, then again for each scenario alone, started from the
+family's schedule (kept where the search finds nothing cheaper). A tuner's run on a scenario is
+a schedule for that scenario, so the second is an estimate of the most any feedback could gain
+over the family's best schedule in that class (an estimate: the segments restrict it, and the
+search may stop short).
 """
 
 from __future__ import annotations
@@ -25,10 +36,11 @@ from bench_conditions import families
 
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.baselines import static_cost, uniform_gain_grid
-from teleopkit.rl.env import FlexTeleopConfig
-from teleopkit.rl.evaluation import EVAL_SEED
+from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
+from teleopkit.rl.evaluation import EVAL_SEED, episode_costs
 from teleopkit.safety.factory import layer_for
 from teleopkit.setup import Setup
+from teleopkit.sim.scenarios import Scenario
 
 
 def hindsight(setup: Setup, points: int, scenarios: int) -> tuple[float, float, np.ndarray]:
@@ -49,19 +61,101 @@ def hindsight(setup: Setup, points: int, scenarios: int) -> tuple[float, float, 
         candidates[best]
 
 
+SEGMENTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+"""Start times in seconds of the schedules' segments (the last runs to the episode's end)."""
+
+
+class _Schedules:
+    """Piecewise-constant gains per lane: lane ``l`` plays ``gains[l, k]`` in segment ``k``."""
+
+    def __init__(self, gains: np.ndarray, period: float) -> None:
+        self.gains = gains
+        self.starts = np.round(np.array(SEGMENTS) / period)
+        self.step = 0
+
+    def reset(self) -> None:
+        self.step = 0
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        segment = int(np.searchsorted(self.starts, self.step, side="right")) - 1
+        self.step += 1
+        return self.gains[:, segment]
+
+
+def _schedule_costs(points: np.ndarray, batch: Scenario, config: FlexTeleopConfig) -> np.ndarray:
+    """Costs ``(C, B)`` of schedules, all in one simulated batch.
+
+    ``points`` in ``[0, 1]^(2 S)`` (``K_r`` and ``B_r`` of each segment over the box): shape
+    ``(C, 2 S)``, each schedule on every scenario, or ``(C, B, 2 S)``, one per scenario.
+    """
+    box = config.safety_certificate().box
+    n = len(box.lower) // 2
+    count = len(points)
+    points = np.broadcast_to(points[:, None] if points.ndim == 2 else points,
+                             (count, batch.batch, 2 * len(SEGMENTS)))
+    x = np.clip(points, 0.0, 1.0).reshape(count * batch.batch, len(SEGMENTS), 2)
+    low, high = box.lower[[0, n]], box.upper[[0, n]]
+    gains = np.repeat(low + x * (high - low), n, axis=-1)  # K_r on every joint, then B_r
+    # lane c B + b: scenario b with schedule (c, b), as Scenario.repeat lays them out
+    costs, unsafe = episode_costs(_Schedules(gains, config.control_period),
+                                  batch.repeat(count), config)
+    if unsafe:
+        raise RuntimeError(f"{unsafe} applied gains outside the certified set")
+    return costs.reshape(count, batch.batch)
+
+
+def schedule_hindsight(setup: Setup, scenarios: int, population: int, generations: int
+                       ) -> tuple[float, float]:
+    """Per-scenario best schedules against the family's best: mean-cost change, mean ratio."""
+    import cma
+
+    certificate = default_certificate(setup.params, setup.network.reached_bounds,
+                                      COVERING_CLASS, setup.plants, setup.ranges)
+    config = FlexTeleopConfig(setup, certificate)
+    batch = setup.scenarios(np.random.default_rng(EVAL_SEED), scenarios)
+    options = {"bounds": [0.0, 1.0], "popsize": population, "seed": 1, "verbose": -9}
+    family = cma.CMAEvolutionStrategy(np.full(2 * len(SEGMENTS), 0.3), 0.2, options)
+    for _ in range(generations):
+        points = np.array(family.ask())
+        family.tell(list(points), list(_schedule_costs(points, batch, config).mean(axis=1)))
+    best = np.asarray(family.result.xbest)
+    common = _schedule_costs(best[None], batch, config)[0]
+    searches = [cma.CMAEvolutionStrategy(best, 0.1, options) for _ in range(batch.batch)]
+    own = common.copy()
+    for _ in range(generations):  # every scenario's own search, side by side in one batch
+        asked = np.array([search.ask() for search in searches])  # (B, C, 2 S)
+        costs = _schedule_costs(asked.transpose(1, 0, 2), batch, config)
+        for b, search in enumerate(searches):
+            search.tell(list(asked[b]), list(costs[:, b]))
+        own = np.minimum(own, costs.min(axis=0))
+    return float(own.mean() / common.mean() - 1), float((own / common).mean() - 1)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--families", nargs="+", default=None, help="family names (default all)")
     parser.add_argument("--points", type=int, default=14, help="grid points per gain")
     parser.add_argument("--scenarios", type=int, default=32)
+    parser.add_argument("--schedules", action="store_true",
+                        help="schedules under the tuners' class in place of constant gains")
+    parser.add_argument("--generations", type=int, default=30, help="CMA-ES generations")
+    parser.add_argument("--population", type=int, default=12, help="CMA-ES population")
     parser.add_argument("--out", type=Path, default=Path("runs/hindsight"),
                         help="where the delay trace of the trace families is written")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     chosen = families(args.out)
-    print("| family | hindsight: mean cost | hindsight: per-scenario ratio | family's best grid "
-          "gains |\n|---|---|---|---|")
+    if args.schedules:
+        print("| family | hindsight schedules: mean cost | per-scenario ratio |\n|---|---|---|")
+    else:
+        print("| family | hindsight: mean cost | hindsight: per-scenario ratio | family's best "
+              "grid gains |\n|---|---|---|---|")
     for name in args.families or list(chosen):
+        if args.schedules:
+            change, ratio = schedule_hindsight(chosen[name], args.scenarios, args.population,
+                                               args.generations)
+            print(f"| {name} | {100 * change:+.1f} % | {100 * ratio:+.1f} % |", flush=True)
+            continue
         change, ratio, gains = hindsight(chosen[name], args.points, args.scenarios)
         print(f"| {name} | {100 * change:+.1f} % | {100 * ratio:+.1f} % | "
               f"{' '.join(f'{g:.3g}' for g in gains)} |", flush=True)

@@ -3,8 +3,8 @@
 A robot's payload, its links' masses, its joints' stiffness or its rotors are seldom known
 exactly. A :class:`PlantRange` gives an interval for each joint's value of some of the remote
 side's parameters (:data:`RANGED`); every scenario draws its plant uniformly from the box they
-span, around a *nominal* plant (the midpoints). The local side (arm, local gains, operator
-spring) is what a closed-form certificate's set depends on, so it has no range.
+span, around a *nominal* plant (the midpoints). The local side has no range: its gains set the
+closed-form certificate's set, and its arm is the device in the operator's hand.
 
 The same value records, in a certificate, which plants the certificate covers: a plant is
 covered when it equals the nominal plant but for ranged values inside their intervals
