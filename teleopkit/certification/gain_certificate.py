@@ -88,6 +88,7 @@ class GainCertificate:
     plant_ranges: tuple[Mapping[str, Any], ...] = ()
     _variation: GainVariation = field(init=False, repr=False, compare=False)
     _scheduled: ScheduledSet | None = field(init=False, repr=False, compare=False)
+    _ranges: tuple[PlantRange, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # a value: its mappings are read-only views of copies
@@ -99,6 +100,9 @@ class GainCertificate:
         if ranges and len(ranges) != 1 + len(self.other_plants):
             raise ValueError(f"plant_ranges has {len(ranges)} entries for "
                              f"{1 + len(self.other_plants)} plants")
+        if not any(ranges):
+            ranges = (PlantRange(),) * (1 + len(self.other_plants))
+        object.__setattr__(self, "_ranges", ranges)
         object.__setattr__(self, "plant_ranges", tuple(
             MappingProxyType(interval.to_record()) for interval in ranges)
             if any(ranges) else ())
@@ -149,8 +153,7 @@ class GainCertificate:
     @property
     def ranges(self) -> tuple[PlantRange, ...]:
         """The range of each recorded plant, ``(plant, *other_plants)`` (empty where none)."""
-        return tuple(PlantRange.from_record(record) for record in self.plant_ranges) or (
-            (PlantRange(),) * (1 + len(self.other_plants)))
+        return self._ranges
 
     def covers_plant(self, params: TeleoperatorParams) -> bool:
         """Whether ``params`` is one of the recorded plants, or lies in the range of one.
