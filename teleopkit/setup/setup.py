@@ -5,8 +5,8 @@ a user's teleoperator::
 
     plant:
       local_arm:   {lengths: [0.38, 0.38], masses: [0.5, 0.35]}   # optional com, inertia
-      remote_arm:  {lengths: [0.38, 0.38], masses: [0.5, 0.35]}
-      joints:      {stiffness: [100, 100], rotor_inertia: [0.3, 0.3]}
+      remote_arm:  {lengths: [0.38, 0.38], masses: [0.5, 0.35]}  # or {min: [..], max: [..]}
+      joints:      {stiffness: [100, 100], rotor_inertia: [0.3, 0.3]}  # ranges too
       local_gains: {stiffness: [25, 25], damping: [10, 10]}
       environment: free            # or {wall: [0.5, .inf], stiffness: 1000, damping: 5}
       torque_limit: 300            # N m; .inf for none
