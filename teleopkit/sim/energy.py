@@ -1,8 +1,9 @@
 """The plant's stored energy read off simulated states: one home for every energy of the loop.
 
 The arms' own energies are physics (:func:`~teleopkit.model.dynamics.kinetic_energy`,
-:func:`~teleopkit.model.dynamics.elastic_arm_energy`); this module evaluates them on the state
-layout of :mod:`teleopkit.sim.state`, adds what the environment and the operator store, and
+:func:`~teleopkit.model.dynamics.elastic_arm_energy`, the same terms the remote energy's one
+vectorised expression evaluates from each plant's constants); this module evaluates them on the
+state layout of :mod:`teleopkit.sim.state`, adds what the environment and the operator store, and
 reads the motor-speed integrals the simulator carries. The storage of the scheduled classes,
 the energy tank of their safety layer and the falsification search all take their energies
 from here.
@@ -10,13 +11,12 @@ from here.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from teleopkit.model.dynamics import (
-    elastic_arm_energy,
     inertia_coefficients,
     kinetic_energy,
     mass_from_coefficients,
@@ -46,14 +46,7 @@ def remote_energy(params: TeleoperatorParams, state: np.ndarray) -> np.ndarray:
     ndarray, shape (...)
         The energy in joules.
     """
-    layout = StateLayout.of(state)
-    qr = layout.get(state, "qr")
-    energy = elastic_arm_energy(params.remote_arm, params.joints, qr, layout.get(state, "dqr"),
-                        layout.get(state, "theta"), layout.get(state, "dtheta"))
-    if isinstance(params.environment, Wall):
-        depth = np.maximum(0.0, qr - np.array(params.environment.position))
-        energy = energy + 0.5 * params.environment.stiffness * np.sum(depth**2, axis=-1)
-    return energy
+    return BatchRemoteEnergy.of_plant(params)(state)
 
 
 @dataclass(frozen=True)
@@ -82,6 +75,26 @@ class BatchRemoteEnergy:
     wall_stiffness: np.ndarray
 
     @classmethod
+    def of_plant(cls, params: TeleoperatorParams) -> BatchRemoteEnergy:
+        """The constants of one plant, for states of any batch shape.
+
+        Parameters
+        ----------
+        params : TeleoperatorParams
+            The plant.
+
+        Returns
+        -------
+        BatchRemoteEnergy
+            Its energy function (constants without a batch axis).
+        """
+        wall = params.environment if isinstance(params.environment, Wall) else None
+        return cls(inertia_coefficients(params.remote_arm), np.array(params.joints.rotor_inertia),
+                   np.array(params.joints.stiffness),
+                   np.full(params.n_joints, np.inf) if wall is None else np.array(wall.position),
+                   np.array(0.0 if wall is None else wall.stiffness))
+
+    @classmethod
     def of(cls, scenario: Scenario) -> BatchRemoteEnergy:
         """The constants of each scenario's plant.
 
@@ -95,27 +108,21 @@ class BatchRemoteEnergy:
         BatchRemoteEnergy
             Its energy function.
         """
-        n = scenario.params.n_joints
-        walls = [p.environment if isinstance(p.environment, Wall) else None
-                 for p in scenario.plants]
-        per_plant = [np.array(part) for part in zip(*(
-            (inertia_coefficients(p.remote_arm), p.joints.rotor_inertia, p.joints.stiffness,
-             (np.inf,) * n if wall is None else wall.position,
-             0.0 if wall is None else wall.stiffness)
-            for p, wall in zip(scenario.plants, walls, strict=True)), strict=True)]
-        return cls(*(np.asarray(values, dtype=float)[scenario.plant_of] for values in per_plant))
+        plants = [cls.of_plant(params) for params in scenario.plants]
+        return cls(*(np.stack([getattr(plant, part.name) for plant in plants])[scenario.plant_of]
+                     for part in fields(cls)))
 
     def __call__(self, state: np.ndarray) -> np.ndarray:
         """``E_r`` of each scenario with its plant.
 
         Parameters
         ----------
-        state : ndarray, shape (B, 12 n)
+        state : ndarray, shape (B, 12 n), or (..., 12 n) for one plant's constants
             States.
 
         Returns
         -------
-        ndarray, shape (B,)
+        ndarray, shape (B,) or (...)
             The energies in joules.
         """
         layout = StateLayout.of(state)
