@@ -15,9 +15,9 @@ the certified set; the transition with the *applied* action enters the buffer; t
 ``updates_per_step`` TD3 updates run. The observation standardisation of the networks is fixed
 from the buffer when learning starts. The exploration standard deviation decays with the number
 of vector steps (each sub-environment's own step count). After each round the deterministic actor
-is scored on fixed validation scenarios (``validation_scenarios``, seed ``validation_seed``) and
-the best one is kept: the policy's held-out cost fluctuates by several per cent from one round to
-the next.
+is scored on fixed validation scenarios (``validation_scenarios``, seed ``validation_seed``,
+episodes of ``validation_length``) and the best one is kept: the policy's held-out cost
+fluctuates by several per cent from one round to the next.
 
 Files in ``out_dir``: ``checkpoint.pt`` (``torch.save``; loads with ``weights_only=True``),
 ``certificate.json`` (the certificate trained under), ``train_log.csv`` (one row per round: ``step,
@@ -97,7 +97,13 @@ class TrainConfig:
         Master seed: network initialisation, target smoothing, replay sampling, exploration noise
         and scenario draws all derive from it.
     episode_length : float
-        Episode duration in seconds (the paper: 40).
+        Duration of the training episodes in seconds (the paper: 40).
+    validation_length : float, optional
+        Duration of the validation episodes in seconds; default ``episode_length``. Training on
+        episodes shorter than the task's puts a larger share of every round into the opening
+        transient, and validating on the task's whole episode keeps the choice of
+        ``best_policy`` a measure of the task (a policy never run past its training episodes
+        can degrade after them).
     learning_starts : int
         Transitions collected with uniform random gains before the first update (at least
         ``num_envs``: the observation statistics come from them).
@@ -130,6 +136,7 @@ class TrainConfig:
     num_envs: int = 16
     seed: int = 0
     episode_length: float = 40.0
+    validation_length: float | None = None
     learning_starts: int = 64_000
     updates_per_step: int = 1
     n_step: int = 1
@@ -148,8 +155,10 @@ class TrainConfig:
         if self.learning_starts < self.num_envs:
             raise ValueError(f"learning_starts must be at least num_envs ({self.num_envs}), "
                              f"got {self.learning_starts}")
-        if not (math.isfinite(self.episode_length) and self.episode_length > 0):
-            raise ValueError(f"episode_length must be positive, got {self.episode_length}")
+        for name in ("episode_length", "validation_length"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be positive, got {value}")
         if self.seed < 0:
             raise ValueError(f"seed must be non-negative, got {self.seed}")
         if self.validation_scenarios < 0:
@@ -226,6 +235,9 @@ class _Run:
         env_config = replace(env_config or FlexTeleopConfig(),
                              episode_length=config.episode_length)
         self.env = FlexTeleopVectorEnv(config.num_envs, env_config)
+        self.validation_config = replace(
+            env_config, decision_period=1,
+            episode_length=config.validation_length or config.episode_length)
         agent_seed, buffer_seed, explore_seed, env_seed = np.random.SeedSequence(
             config.seed).generate_state(4)
         self.env_seed = int(env_seed)
@@ -268,9 +280,9 @@ class _Run:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a checkpoint written by the same configuration."""
         recorded, current = state.get("fingerprint") or {}, self.fingerprint()
-        if recorded != current:
-            names = [key for key in dict.fromkeys([*recorded, *current])
-                     if recorded.get(key) != current.get(key)]
+        names = [key for key in dict.fromkeys([*recorded, *current])
+                 if recorded.get(key) != current.get(key)]
+        if names:
             first = names[0]
             raise ValueError(f"the checkpoint was written with other settings ({', '.join(names)}"
                              f"): {first} was {_short(recorded.get(first))}, now "
@@ -395,7 +407,7 @@ class _Run:
         actor = self.agent.policy()
         controller = actor if periods == 1 else HeldController(actor, periods)
         run = rollout(controller, self.config.validation_scenarios, self.config.validation_seed,
-                      replace(self.env.config, decision_period=1))
+                      self.validation_config)
         cost = float(run.metrics()["cost"].mean())
         self.counters.unsafe_actions += run.unsafe_actions
         if cost < self.counters.best_validation:

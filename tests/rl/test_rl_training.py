@@ -194,6 +194,35 @@ def test_existing_checkpoint_needs_resume_and_the_same_settings(tmp_path):
     assert int(longer.log["step"].iloc[-1]) == 160  # only the length changed: it continues
 
 
+def test_validation_runs_the_episodes_of_its_own_length():
+    """Training on 0.1 s episodes, validated on 0.3 s ones: every logged validation cost is the
+    cost of that round's actor over 0.3 s, not 0.1 s (the best policy's cost is recomputed)."""
+    config = replace(TINY, total_steps=40 * 4, validation_length=0.3, validation_scenarios=4)
+    result = train(config, progress=False)
+    assert result.best_policy is not None
+    log = result.log
+    best = log["validation_cost"].min()
+
+    def cost(length):
+        env_config = FlexTeleopConfig(episode_length=length)
+        return rollout(result.best_policy, 4, config.validation_seed,
+                       env_config).metrics()["cost"].mean()
+
+    assert cost(0.3) == pytest.approx(best, rel=1e-9)
+    assert cost(0.1) < 0.9 * best  # a third of the episode costs visibly less
+    assert (log["step"] == [40 * k for k in range(1, 5)]).all()  # rounds of 0.1 s
+
+
+def test_a_checkpoint_without_a_later_setting_resumes_at_its_default(tmp_path):
+    """A fingerprint written before a setting existed matches that setting's default."""
+    train(replace(TINY, total_steps=80), tmp_path, progress=False)
+    state = load_checkpoint(tmp_path / CHECKPOINT)
+    assert state["fingerprint"].pop("validation_length") is None
+    torch.save(state, tmp_path / CHECKPOINT)
+    resumed = train(replace(TINY, total_steps=120), tmp_path, resume=True, progress=False)
+    assert int(resumed.log["step"].iloc[-1]) == 120
+
+
 def _dead_pid() -> int:
     child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                            capture_output=True, text=True, check=True)
@@ -219,7 +248,8 @@ def test_a_directory_in_use_is_refused_and_a_killed_runs_lock_taken_over(tmp_pat
 
 @pytest.mark.parametrize("bad", [{"total_steps": 0}, {"num_envs": 0}, {"n_step": 0},
                                  {"learning_starts": 1}, {"episode_length": 0.0}, {"seed": -1},
-                                 {"validation_scenarios": -1}])
+                                 {"validation_scenarios": -1}, {"validation_length": 0.0},
+                                 {"validation_length": float("nan")}])
 def test_config_rejects_bad_values(bad):
     with pytest.raises(ValueError):
         replace(TINY, **bad)
