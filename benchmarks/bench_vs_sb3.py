@@ -4,6 +4,7 @@
         [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16 ...]
         [--learning-rates 1e-3 ...] [--n-steps 1 ...] [--critic-actions applied raw]
         [--setup paper|mixed|FILE] [--observation paper|adaptive] [--below 0.1]
+        [--episode-length 10]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
 recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
@@ -17,7 +18,9 @@ every scenario) the deterministic actor is validated on the recipe's 16 validati
 run stops at the first round whose validation cost is 10 % below that of the best static gains of
 the frozen class there (``--below``: the fraction below them; ``--setup`` and ``--observation``
 race on another setup, for example the adaptive tuner's ``--setup mixed --observation
-adaptive``, the static gains searched for it). Printed per trainer, setting and seed: that
+adaptive``, the static gains searched for it; ``--episode-length`` trains both on shorter episodes,
+a round then being one such episode of every scenario, and still validates on whole 40 s ones).
+Printed per trainer, setting and seed: that
 round, the wall-clock time to it (training and validations; the static gains' search is
 excluded and printed apart) and where that time went: the simulator, the safety layer's
 projection, the gradient updates (SB3: its ``train`` calls, sampling included) and the
@@ -33,6 +36,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -75,15 +79,18 @@ class Setting(NamedTuple):
     envs: int
     n_step: int
     critic_action: str
+    episode_length: float
 
 
 def _teleopkit(setting: Setting, rounds: int, target: float,
                config: FlexTeleopConfig) -> dict[str, float]:
     """Round, validation cost, wall time and its split at the first round below the target."""
-    per_round = setting.envs * config.max_steps
+    per_round = setting.envs * _training(config, setting).max_steps
     rate = setting.learning_rate
     settings = TrainConfig(total_steps=rounds * per_round, seed=setting.seed,
                            num_envs=setting.envs, learning_starts=per_round,
+                           episode_length=setting.episode_length,
+                           validation_length=config.episode_length,
                            n_step=setting.n_step,
                            buffer_size=max(RECIPE.buffer_size, 2 * per_round),
                            td3=TD3Config(discount=setting.discount, actor_lr=rate,
@@ -105,12 +112,18 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
     return found
 
 
+def _training(config: FlexTeleopConfig, setting: Setting) -> FlexTeleopConfig:
+    """The environment of the training episodes (the task's, of the setting's length)."""
+    return replace(config, episode_length=setting.episode_length)
+
+
 def _sb3(setting: Setting, rounds: int, target: float,
          config: FlexTeleopConfig) -> dict[str, float]:
     """Round, validation cost, wall time and its split at the first round below the target."""
     start = time.perf_counter()
-    env = _SB3View(FlexTeleopVectorEnv(setting.envs, config), setting.seed)
-    per_round = setting.envs * config.max_steps
+    training = _training(config, setting)
+    env = _SB3View(FlexTeleopVectorEnv(setting.envs, training), setting.seed, config)
+    per_round = setting.envs * training.max_steps
     half = (env.high - env.low) / 2
     model = TD3("MlpPolicy", env, learning_rate=setting.learning_rate,
                 buffer_size=max(RECIPE.buffer_size, 2 * per_round),
@@ -150,11 +163,13 @@ class _SB3View(VecEnv):
     """An SB3 ``VecEnv`` view of a batched teleopkit environment.
 
     Actions in ``[-1, 1]`` rescaled onto the gain box; observations standardised with
-    statistics frozen from a warm-up episode of uniform random gains.
+    statistics frozen from a warm-up episode of uniform random gains; validation on the
+    ``task``'s episodes.
     """
 
-    def __init__(self, inner: FlexTeleopVectorEnv, seed: int) -> None:
+    def __init__(self, inner: FlexTeleopVectorEnv, seed: int, task: FlexTeleopConfig) -> None:
         self.inner = inner
+        self.task = task
         space = inner.single_action_space
         self.low, self.high = space.low, space.high
         size = inner.single_observation_space.shape[0]
@@ -205,8 +220,7 @@ class _SB3View(VecEnv):
         def controller(obs: np.ndarray) -> np.ndarray:
             return self.gains(model.predict(self.scale(obs), deterministic=True)[0])
 
-        run = rollout(controller, RECIPE.validation_scenarios, RECIPE.validation_seed,
-                      self.inner.config)
+        run = rollout(controller, RECIPE.validation_scenarios, RECIPE.validation_seed, self.task)
         return float(-run.reward.sum(axis=0).mean())
 
     def close(self) -> None:
@@ -245,6 +259,9 @@ def main() -> None:
     parser.add_argument("--observation", default="paper", choices=["paper", "adaptive"])
     parser.add_argument("--below", type=float, default=0.1,
                         help="target: this fraction below the frozen best static gains' cost")
+    parser.add_argument("--episode-length", type=float, default=None,
+                        help="seconds of the training episodes of both trainers (default: the "
+                             "task's 40 s); validation stays on whole episodes")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -260,15 +277,17 @@ def main() -> None:
     certificate = default_certificate(setup.params, setup.network.reached_bounds, COVERING_CLASS)
     config = FlexTeleopConfig(setup, certificate, observation=args.observation)
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
-    print("\n| trainer | envs | n-step | critic values | discount | learning rate | seed | round "
-          "| validation cost | time to it [s] | simulation | projection | updates | validation |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n| trainer | envs | episode [s] | n-step | critic values | discount | learning rate "
+          "| seed | round | validation cost | time to it [s] | simulation | projection | updates "
+          "| validation |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.which:
         for setting in _grid(args, name):
             found = trainers[name](setting, args.rounds, target, config)
             mark = "" if found["cost"] <= target else f" (not within {args.rounds} rounds)"
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
-            print(f"| {name} | {setting.envs} | {setting.n_step} | {setting.critic_action} | "
+            print(f"| {name} | {setting.envs} | {setting.episode_length:g} | {setting.n_step} | "
+                  f"{setting.critic_action} | "
                   f"{setting.discount:g} | "
                   f"{setting.learning_rate:g} | {setting.seed} | {found['round']:.0f} | "
                   f"{found['cost']:.0f}{mark} | {found['wall']:.0f} | {split} |", flush=True)
@@ -282,7 +301,8 @@ def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
     ours = name == "teleopkit"
     steps = args.n_steps if ours else [1]
     valued = args.critic_actions if ours else ["raw"]
-    return [Setting(seed, discount, rate, envs, n, value)
+    length = args.episode_length or RECIPE.episode_length
+    return [Setting(seed, discount, rate, envs, n, value, length)
             for envs in args.envs for n in steps for value in valued
             for discount in args.discounts for rate in args.learning_rates for seed in args.seeds]
 
