@@ -155,9 +155,11 @@ class TrainConfig:
         if self.learning_starts < self.num_envs:
             raise ValueError(f"learning_starts must be at least num_envs ({self.num_envs}), "
                              f"got {self.learning_starts}")
-        for name in ("episode_length", "validation_length"):
-            value = getattr(self, name)
-            if value is not None and not (math.isfinite(value) and value > 0):
+        lengths = {"episode_length": self.episode_length}
+        if self.validation_length is not None:
+            lengths["validation_length"] = self.validation_length
+        for name, value in lengths.items():
+            if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive, got {value}")
         if self.seed < 0:
             raise ValueError(f"seed must be non-negative, got {self.seed}")
