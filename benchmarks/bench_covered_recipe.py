@@ -1,9 +1,11 @@
 """Wall-clock time for the covered recipe to come 10 % below the frozen class's best static gains.
 
-    NUMBA_NUM_THREADS=2 python benchmarks/bench_covered_recipe.py [--seeds 0 1 2] [--rounds 12]
+    NUMBA_NUM_THREADS=2 python benchmarks/bench_covered_recipe.py [--recipe fast|paper]
+        [--seeds 0 1 2] [--rounds 12]
 
-Trains the recipe of ``teleopkit train`` (``TrainConfig()`` under its covering class,
-``teleopkit.rl.env.COVERING_CLASS``) seed by seed, alone on the machine, and stops a seed at
+Trains a recipe of ``teleopkit train`` (``teleopkit.rl.recipes.RECIPES``, the fast one by
+default, under its covering class ``teleopkit.rl.env.COVERING_CLASS``) seed by seed, alone on the
+machine, and stops a seed at
 the first round whose validation cost (the deterministic actor under the covering certificate,
 16 validation scenarios) is at least 10 % below that of the best static gains of the frozen class
 on the same scenarios. Prints, per seed, that round and the training's wall-clock time to it
@@ -15,6 +17,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -25,7 +28,7 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.training import TrainConfig, train
+from teleopkit.rl.training import RECIPES, train
 
 
 class _Reached(Exception):
@@ -36,9 +39,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--rounds", type=int, default=12, help="most rounds per seed")
+    parser.add_argument("--recipe", choices=list(RECIPES), default="fast")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    recipe = TrainConfig()
+    recipe = RECIPES[args.recipe]
     start = time.perf_counter()
     static = best_static_gains().gains
     frozen = rollout(ConstantGains(static), recipe.validation_scenarios, recipe.validation_seed,
@@ -50,8 +54,8 @@ def main() -> None:
     config = FlexTeleopConfig(certificate=default_certificate(variation=COVERING_CLASS))
     print("\n| seed | round | validation cost | wall-clock time to it [s] |\n|---|---|---|---|")
     for seed in args.seeds:
-        rounds = recipe.num_envs * config.max_steps
-        settings = TrainConfig(total_steps=args.rounds * rounds, seed=seed)
+        rounds = recipe.num_envs * replace(config, episode_length=recipe.episode_length).max_steps
+        settings = replace(recipe, total_steps=args.rounds * rounds, seed=seed)
         with tempfile.TemporaryDirectory() as out:
             log: list[float] = []
 

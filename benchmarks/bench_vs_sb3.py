@@ -1,26 +1,28 @@
 """Time to 10 % below the frozen best static gains: teleopkit's trainer against Stable-Baselines3.
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
-        [--discounts 0.95 0.99] [--which teleopkit sb3] [--envs 16 ...]
+        [--which teleopkit sb3] [--recipes fast paper] [--discounts 0.95 0.99] [--envs 16 ...]
         [--learning-rates 1e-3 ...] [--n-steps 1 ...] [--critic-actions applied raw]
         [--setup paper|mixed|FILE] [--observation paper|adaptive] [--below 0.1]
         [--episode-length 10]
 
-Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios of 40 s, the
-recipe's covering certificate ``tank:3``, so the same safety layer projects every action), same
-machine, one run after the other. Both trainers get the recipe's settings but for the grid of the
-command line (parallel scenarios, discount, learning rates; the steps per transition of
-teleopkit's trainer): batch 512, a warm-up of one round (64 000 transitions of uniform random
-gains), rewards scaled by 0.01, one gradient update per vector step of 16 transitions,
+Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios, the recipes'
+covering certificate ``tank:3``, so the same safety layer projects every action), same machine,
+one run after the other. teleopkit's trainer runs its named recipes
+(:data:`~teleopkit.rl.recipes.RECIPES`, ``--recipes``); SB3's TD3 its best settings found here
+(:data:`SB3_BEST`: discount 0.99, learning rates 1e-3, 16 scenarios, 10 s training episodes).
+A grid option given on the command line (parallel scenarios, discounts, learning rates, episode
+length; the steps per transition and what the critics value of teleopkit's trainer) replaces
+those values for both. Common to both: batch 512, a warm-up of one round of uniform random
+gains, rewards scaled by 0.01, one gradient update per vector step of 16 transitions,
 observations standardised with statistics frozen from the warm-up, the paper's network widths,
-Gaussian exploration of 4 gain units, the discount given. After every round (one 40 s episode of
-every scenario) the deterministic actor is validated on the recipe's 16 validation scenarios; a
-run stops at the first round whose validation cost is 10 % below that of the best static gains of
-the frozen class there (``--below``: the fraction below them; ``--setup`` and ``--observation``
-race on another setup, for example the adaptive tuner's ``--setup mixed --observation
-adaptive``, the static gains searched for it; ``--episode-length`` trains both on shorter episodes,
-a round then being one such episode of every scenario, and still validates on whole 40 s ones).
-Printed per trainer, setting and seed: that
+Gaussian exploration of 4 gain units. After every round (one training episode of every
+scenario) the deterministic actor is validated on the recipes' 16 validation scenarios, whole
+40 s episodes; a run stops at the first round whose validation cost is 10 % below that of the
+best static gains of the frozen class there (``--below``: the fraction below them; ``--setup``
+and ``--observation`` race on another setup, for example the adaptive tuner's ``--setup mixed
+--observation adaptive``, the static gains searched for it). Printed per trainer, setting and
+seed: that
 round, the wall-clock time to it (training and validations; the static gains' search is
 excluded and printed apart) and where that time went: the simulator, the safety layer's
 projection, the gradient updates (SB3: its ``train`` calls, sampling included) and the
@@ -54,12 +56,15 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.td3 import TD3Config
-from teleopkit.rl.training import TrainConfig, train
+from teleopkit.rl.training import RECIPES, train
 from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
 
-RECIPE = TrainConfig()
+RECIPE = RECIPES["paper"]
 REWARD_SCALE = RECIPE.td3.reward_scale
+
+SB3_BEST = {"discount": 0.99, "learning_rate": 1e-3, "envs": 16, "episode_length": 10.0}
+"""SB3's best settings on the paper's benchmark (searched: discounts 0.95 and 0.99, learning
+rates 3e-4 to 3e-3, 16 and 64 scenarios, 10 and 40 s training episodes)."""
 
 
 SPLIT = ("simulation", "projection", "update", "validation")
@@ -73,6 +78,7 @@ class _Reached(Exception):
 class Setting(NamedTuple):
     """One trainer's settings in the race."""
 
+    trainer: str
     seed: int
     discount: float
     learning_rate: float
@@ -87,14 +93,14 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
     """Round, validation cost, wall time and its split at the first round below the target."""
     per_round = setting.envs * _training(config, setting).max_steps
     rate = setting.learning_rate
-    settings = TrainConfig(total_steps=rounds * per_round, seed=setting.seed,
-                           num_envs=setting.envs, learning_starts=per_round,
-                           episode_length=setting.episode_length,
-                           validation_length=config.episode_length,
-                           n_step=setting.n_step,
-                           buffer_size=max(RECIPE.buffer_size, 2 * per_round),
-                           td3=TD3Config(discount=setting.discount, actor_lr=rate,
-                                         critic_lr=rate, critic_action=setting.critic_action))
+    recipe = RECIPES[setting.trainer.split()[1]]
+    settings = replace(recipe, total_steps=rounds * per_round, seed=setting.seed,
+                       num_envs=setting.envs, learning_starts=per_round,
+                       episode_length=setting.episode_length,
+                       validation_length=config.episode_length, n_step=setting.n_step,
+                       buffer_size=max(recipe.buffer_size, 2 * per_round),
+                       td3=replace(recipe.td3, discount=setting.discount, actor_lr=rate,
+                                   critic_lr=rate, critic_action=setting.critic_action))
     found: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as out:
         def check(done: int) -> None:
@@ -244,24 +250,28 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
     parser.add_argument("--rounds", type=int, default=12)
-    parser.add_argument("--discounts", nargs="+", type=float, default=[0.95, 0.99])
     parser.add_argument("--which", nargs="+", default=["teleopkit", "sb3"])
-    parser.add_argument("--envs", nargs="+", type=int, default=[RECIPE.num_envs],
-                        help="parallel scenarios of both trainers (a round is one episode each)")
-    parser.add_argument("--learning-rates", nargs="+", type=float, default=[1e-3],
-                        help="learning rates of actor and critics, both trainers")
-    parser.add_argument("--n-steps", nargs="+", type=int, default=[RECIPE.n_step],
-                        help="steps per transition of teleopkit's trainer")
-    parser.add_argument("--critic-actions", nargs="+", default=[RECIPE.td3.critic_action],
-                        choices=["applied", "raw"],
-                        help="what teleopkit's critics value (TD3Config.critic_action)")
+    parser.add_argument("--recipes", nargs="+", default=["fast"], choices=list(RECIPES),
+                        help="teleopkit's recipes (teleopkit.rl.recipes.RECIPES)")
+    parser.add_argument("--discounts", nargs="+", type=float, default=None,
+                        help="discounts of both trainers [default: each one's own]")
+    parser.add_argument("--envs", nargs="+", type=int, default=None,
+                        help="parallel scenarios of both trainers (a round is one episode each) "
+                             "[default: 16]")
+    parser.add_argument("--learning-rates", nargs="+", type=float, default=None,
+                        help="learning rates of actor and critics, both trainers [default: 1e-3]")
+    parser.add_argument("--n-steps", nargs="+", type=int, default=None,
+                        help="steps per transition of teleopkit's trainer [default: the recipe's]")
+    parser.add_argument("--critic-actions", nargs="+", default=None, choices=["applied", "raw"],
+                        help="what teleopkit's critics value (TD3Config.critic_action) "
+                             "[default: the recipe's]")
     parser.add_argument("--setup", default="paper", help="a shipped setup name or a file")
     parser.add_argument("--observation", default="paper", choices=["paper", "adaptive"])
     parser.add_argument("--below", type=float, default=0.1,
                         help="target: this fraction below the frozen best static gains' cost")
     parser.add_argument("--episode-length", type=float, default=None,
-                        help="seconds of the training episodes of both trainers (default: the "
-                             "task's 40 s); validation stays on whole episodes")
+                        help="seconds of the training episodes of both trainers [default: each "
+                             "one's own]; validation stays on whole 40 s episodes")
     args = parser.parse_args()
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -286,7 +296,8 @@ def main() -> None:
             found = trainers[name](setting, args.rounds, target, config)
             mark = "" if found["cost"] <= target else f" (not within {args.rounds} rounds)"
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
-            print(f"| {name} | {setting.envs} | {setting.episode_length:g} | {setting.n_step} | "
+            print(f"| {setting.trainer} | {setting.envs} | {setting.episode_length:g} | "
+                  f"{setting.n_step} | "
                   f"{setting.critic_action} | "
                   f"{setting.discount:g} | "
                   f"{setting.learning_rate:g} | {setting.seed} | {found['round']:.0f} | "
@@ -294,17 +305,33 @@ def main() -> None:
 
 
 def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
-    """Every setting of the command line for one trainer.
+    """Every setting of the command line for one trainer (teleopkit: for each recipe).
 
-    SB3 has no n-step option here, and its critics value the raw actions.
+    An option left out takes the recipe's value (SB3: :data:`SB3_BEST`). SB3 has no n-step
+    option here, and its critics value the raw actions.
     """
-    ours = name == "teleopkit"
-    steps = args.n_steps if ours else [1]
-    valued = args.critic_actions if ours else ["raw"]
-    length = args.episode_length or RECIPE.episode_length
-    return [Setting(seed, discount, rate, envs, n, value, length)
-            for envs in args.envs for n in steps for value in valued
-            for discount in args.discounts for rate in args.learning_rates for seed in args.seeds]
+    if name == "sb3":
+        return _settings(args, "sb3", SB3_BEST["discount"], SB3_BEST["learning_rate"],
+                         SB3_BEST["envs"], 1, "raw", SB3_BEST["episode_length"])
+    grid = []
+    for recipe_name in args.recipes:
+        recipe = RECIPES[recipe_name]
+        grid += _settings(args, f"teleopkit {recipe_name}", recipe.td3.discount,
+                          recipe.td3.actor_lr, recipe.num_envs, recipe.n_step,
+                          recipe.td3.critic_action, recipe.episode_length)
+    return grid
+
+
+def _settings(args: argparse.Namespace, trainer: str, discount: float, rate: float, envs: int,
+              n_step: int, valued: str, length: float) -> list[Setting]:
+    """One trainer's settings: the command line's grid where given, else the values passed."""
+    ours = trainer != "sb3"
+    return [Setting(trainer, seed, gamma, lr, count, n, value, args.episode_length or length)
+            for count in args.envs or [envs]
+            for n in (args.n_steps or [n_step] if ours else [1])
+            for value in (args.critic_actions or [valued] if ours else ["raw"])
+            for gamma in args.discounts or [discount]
+            for lr in args.learning_rates or [rate] for seed in args.seeds]
 
 if __name__ == "__main__":
     main()

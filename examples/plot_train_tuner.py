@@ -60,7 +60,7 @@ STATIC = (8, 4, 30) if SMALL else (16, 8, 200)
 # %%
 # The training configuration
 # --------------------------
-# :class:`teleopkit.rl.training.TrainConfig` holds every setting of a run. Training proceeds in
+# :class:`teleopkit.rl.recipes.TrainConfig` holds every setting of a run. Training proceeds in
 # *rounds*, one episode of each of the ``num_envs`` scenarios simulated together, and
 # ``total_steps`` (transitions over all scenarios) is rounded up to whole rounds. The first
 # ``learning_starts`` transitions use uniform random gains (projected like every other action)

@@ -25,7 +25,7 @@ from teleopkit.cli.options import (
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
     from teleopkit.rl.env import FlexTeleopConfig
-    from teleopkit.rl.training import TrainConfig
+    from teleopkit.rl.recipes import TrainConfig
     from teleopkit.setup import Setup
 
 __all__ = ["evaluate_command", "reproduce_command", "train_command"]
@@ -39,6 +39,11 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
               help="Scenarios simulated together.")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Master seed of the run.")
+@click.option("--recipe", type=click.Choice(["fast", "paper"]), default="fast",
+              show_default=True,
+              help="Training recipe (teleopkit.rl.recipes.RECIPES): fast, 10 s training "
+                   "episodes validated on 40 s ones, critics of the raw gains, a tanh output; "
+                   "or the paper's, 40 s episodes, critics of the certified gains.")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/train", show_default=True,
               help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz, "
                    "config.json and certificate.json.")
@@ -58,8 +63,8 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
 @certificate_option
 @setup_option
 @click.pass_context
-def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Path, resume: bool,
-                  variation: object, observation: str, certificate: Path | None,
+def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: str, out: Path,
+                  resume: bool, variation: object, observation: str, certificate: Path | None,
                   setup: Setup) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
@@ -68,9 +73,10 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
 
     By default it trains under a class whose certificate covers every schedule the tuner plays
     (the certificate is recorded in the policy files, and evaluate uses it). The other settings
-    are the defaults of teleopkit.rl.training.TrainConfig: 40 s episodes, the paper's TD3 with
-    learning rates 1e-3 and discount 0.95, best policy kept by validation cost; the first round
-    explores with uniform random gains.
+    are the recipe's (--recipe, teleopkit.rl.recipes.RECIPES): the fast one by default (10 s
+    training episodes, discount 0.99), or the paper's TD3 on 40 s episodes (learning rates 1e-3,
+    discount 0.95); either keeps the best policy by its validation cost on 40 s episodes, and
+    its first round explores with uniform random gains.
     """
     require_torch()
     from teleopkit.files import check_unlocked
@@ -90,18 +96,19 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, out: Pat
     check_unlocked(out / LOCK, str(out))  # before anything is printed
     env_config = FlexTeleopConfig(setup, observation=observation)
     chosen = _training_certificate(out, resume, variation, certificate, env_config)
-    recipe = _training_config(ctx, out, resume, steps, envs, seed)
-    per_round = recipe.num_envs * FlexTeleopConfig().max_steps
-    if recipe.total_steps % per_round:
-        rounded = -(-recipe.total_steps // per_round) * per_round
-        click.echo(f"--steps {recipe.total_steps} is rounded up to {rounded} transitions: whole "
-                   f"rounds of {recipe.num_envs} scenarios x {per_round // recipe.num_envs} "
-                   "control periods", err=True)
-        recipe = replace(recipe, total_steps=rounded)
+    settings = _training_config(ctx, out, resume, steps, envs, seed, recipe)
+    per_round = _round_steps(settings)
+    if settings.total_steps % per_round:
+        rounded = -(-settings.total_steps // per_round) * per_round
+        click.echo(f"--steps {settings.total_steps} is rounded up to {rounded} transitions: "
+                   f"whole rounds of {settings.num_envs} scenarios x "
+                   f"{per_round // settings.num_envs} control periods", err=True)
+        settings = replace(settings, total_steps=rounded)
     click.echo(f"training under {chosen.gain_variation} ({chosen.variation.describe()}) on the "
                "certified set of the box " + _box_text(chosen), err=True)
     single_thread()
-    result = train(recipe, out, resume=resume, env_config=replace(env_config, certificate=chosen),
+    result = train(settings, out, resume=resume,
+                   env_config=replace(env_config, certificate=chosen),
                    progress=sys.stderr.isatty())
     row = result.log.iloc[-1]
     click.echo(f"trained {int(row['step'])} steps under {chosen.gain_variation}; best "
@@ -151,15 +158,34 @@ def _check_certificate(certificate: GainCertificate, config: FlexTeleopConfig) -
     certificate.check(config.setup.plants, *network.reached_bounds, network.reached_floors)
 
 
+def _round_steps(settings: TrainConfig) -> int:
+    """Transitions of one round: an episode of the settings' length of every scenario."""
+    from teleopkit.rl.env import FlexTeleopConfig
+
+    return settings.num_envs * FlexTeleopConfig(episode_length=settings.episode_length).max_steps
+
+
+def _recipe_of(settings: TrainConfig) -> str | None:
+    """The name of the recipe the settings are (any length, scenarios, seed, warm-up), if any."""
+    from teleopkit.rl.recipes import RECIPES
+
+    free = ("total_steps", "num_envs", "seed", "learning_starts", "checkpoint_every")
+
+    def kept(config: TrainConfig) -> dict[str, Any]:
+        return {k: v for k, v in config.to_dict().items() if k not in free}
+
+    return next((name for name, known in RECIPES.items() if kept(known) == kept(settings)), None)
+
+
 def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, envs: int,
-                     seed: int) -> TrainConfig:
+                     seed: int, recipe: str) -> TrainConfig:
     """The run's settings: recorded ones on resume (with the new length), else the recipe's.
 
     The warm-up (uniform random gains) is the first round, or the first half of a run of one
     round; a resumed run keeps the warm-up it was started with.
     """
-    from teleopkit.rl.env import FlexTeleopConfig
-    from teleopkit.rl.training import CONFIG, TrainConfig
+    from teleopkit.rl.recipes import RECIPES, TrainConfig
+    from teleopkit.rl.training import CONFIG
 
     if resume and (out / CONFIG).is_file():
         try:
@@ -175,10 +201,17 @@ def _training_config(ctx: click.Context, out: Path, resume: bool, steps: int, en
                                          f"{getattr(recorded, field)}; a resumed run keeps its "
                                          "settings (only --steps may change)",
                                          param_hint=f"'--{name}'")
+        given = ctx.get_parameter_source("recipe") is not ParameterSource.DEFAULT
+        trained_with = _recipe_of(recorded)
+        if given and trained_with != recipe:
+            had = f"--recipe {trained_with}" if trained_with else "settings of no recipe"
+            raise click.BadParameter(f"the run in {out} has {had}; a resumed run keeps its "
+                                     "settings (only --steps may change)", param_hint="'--recipe'")
         return replace(recorded, total_steps=steps)
-    per_round = envs * FlexTeleopConfig().max_steps
+    chosen = replace(RECIPES[recipe], total_steps=steps, num_envs=envs, seed=seed)
+    per_round = _round_steps(chosen)
     warm_up = per_round if steps > per_round else max(envs, per_round // 2)
-    return TrainConfig(total_steps=steps, num_envs=envs, seed=seed, learning_starts=warm_up)
+    return replace(chosen, learning_starts=warm_up)
 
 
 class _PolicyFile(click.Path):

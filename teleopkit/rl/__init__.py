@@ -5,7 +5,8 @@
 :mod:`~teleopkit.rl.scoring`; :mod:`~teleopkit.rl.td3` is the learner, built from
 :mod:`~teleopkit.rl.networks`, :mod:`~teleopkit.rl.torch_projection` and
 :mod:`~teleopkit.rl.replay`; :mod:`~teleopkit.rl.policy` is a trained actor in numpy;
-:mod:`~teleopkit.rl.training` runs training, :mod:`~teleopkit.rl.evaluation` compares
+:mod:`~teleopkit.rl.training` runs training with the settings and recipes of
+:mod:`~teleopkit.rl.recipes`, :mod:`~teleopkit.rl.evaluation` compares
 controllers on held-out scenarios and :mod:`~teleopkit.rl.baselines` finds the fixed and best
 static gains. Only the learner, its networks and training need torch.
 """
@@ -21,7 +22,8 @@ _EXPORTS = {
     "GainPolicy": "policy",
     "TD3": "td3",
     "TD3Config": "td3",
-    "TrainConfig": "training",
+    "RECIPES": "recipes",
+    "TrainConfig": "recipes",
     "train": "training",
     "evaluate": "evaluation",
     "rollout": "evaluation",

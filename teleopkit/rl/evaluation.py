@@ -6,7 +6,7 @@ layer and is counted if it lies outside the certified set (``unsafe_actions``, w
 The scenarios are drawn from the environment's setup (:class:`~teleopkit.setup.Setup`, the
 paper's by default) with the evaluation seed: operator motions, delays and starts that training
 never saw (training draws its
-scenarios from generators seeded by :class:`~teleopkit.rl.training.TrainConfig`, the static-gain
+scenarios from generators seeded by :class:`~teleopkit.rl.recipes.TrainConfig`, the static-gain
 search from :data:`~teleopkit.rl.baselines.BASELINE_SEED`).
 
 Per scenario: RMS and IAE (and maxima) of the tracking error ``theta_r - q_l(t - T_l)`` and the

@@ -1,9 +1,13 @@
-"""The paper's networks: an actor with a softplus output over the action box, and a critic.
+"""The tuner's networks: an actor whose output map covers the action box, and a critic.
 
-The actor maps observations to raw gains ``low + (start - low) softplus(z) / ln 2`` (``z = 0``
-gives ``start``, by default the centre of the action box); the critic has a state path and an
-action path merged into a scalar. Both standardise their inputs with fixed statistics, and every
-weight is drawn from a generator the caller owns (the global RNG is never touched).
+The actor maps observations to raw gains through one of two output maps
+(:data:`~teleopkit.rl.policy.OUTPUT_MAPS`): the paper's ``low + (start - low) softplus(z) / ln 2``
+(``z = 0`` gives ``start``, by default the centre of the action box; unbounded above), or
+``low + (high - low) (1 + tanh(z)) / 2`` (the box and nothing else, as Stable-Baselines3's TD3
+squashes its actions). The critic has a state
+path and an action path merged into a scalar (the paper's), or one path that takes both at its
+input. Both standardise their inputs with fixed statistics, and every weight is drawn from a
+generator the caller owns (the global RNG is never touched).
 """
 
 from __future__ import annotations
@@ -15,6 +19,8 @@ import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
+
+from teleopkit.rl.policy import check_output_map
 
 __all__ = ["Actor", "Critic", "Standardise", "half_range"]
 
@@ -80,23 +86,30 @@ class Standardise(nn.Module):
 
 
 class Actor(nn.Module):
-    """Deterministic policy ``obs -> raw gains``: ``obs_dim``-128-64-``act_dim``, softplus output.
+    """Deterministic policy ``obs -> raw gains``: ``obs_dim``-128-64-``act_dim`` and an output map.
 
     Parameters
     ----------
     obs_dim : int
         Observation size (14 for two joints).
     low, high : ndarray, shape (act_dim,)
-        The action box the output must cover (see the module notes for the map).
+        The action box the output must cover (see the module notes for the maps).
     generator : torch.Generator
         Source of the initial weights.
     hidden : tuple of int
         Hidden widths.
     start : ndarray, shape (act_dim,), optional
-        The gains at ``z = 0``, where the untrained actor starts (strictly above ``low``;
-        default the centre of the box): the map becomes ``low + (start - low) softplus(z) /
-        ln 2``, which still reaches every gain of the box. A gain whose range is a single value
-        (``low == high``, for example a stiffness held constant) is that value.
+        The gains at ``z = 0``, where the untrained actor starts (default the centre of the
+        box). Softplus map: strictly above ``low``, the map becomes ``low + (start - low)
+        softplus(z) / ln 2``, which still reaches every gain of the box. Tanh map: strictly
+        inside the box, the last layer's bias is offset by ``artanh(2 (start - low) / (high -
+        low) - 1)``. A gain whose range is a single value (``low == high``, for example a
+        stiffness held constant) is that value.
+    output : {"softplus", "tanh"}
+        The output map (:data:`~teleopkit.rl.policy.OUTPUT_MAPS`). The softplus map's last
+        layer starts small (``U(-3e-3, 3e-3)``, DDPG's), every output near ``start``; the tanh
+        map's last layer has PyTorch's default initialisation, the outputs spread over the box
+        from the start.
     """
 
     low: torch.Tensor
@@ -104,25 +117,37 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, low: np.ndarray, high: np.ndarray,
                  generator: torch.Generator, hidden: tuple[int, ...] = (128, 64),
-                 start: np.ndarray | None = None) -> None:
+                 start: np.ndarray | None = None, output: str = "softplus") -> None:
         super().__init__()
+        check_output_map(output)
+        self.output = output
         act_dim = len(low)
         self.normalise = Standardise(obs_dim)
         body = _mlp((obs_dim, *hidden), generator)
         self.body = nn.Sequential(*body, nn.ReLU())
-        # A small last layer starts every output near ``start`` (DDPG's 3e-3).
-        self.head = _linear(hidden[-1], act_dim, generator, bound=3e-3)
+        self.head = _linear(hidden[-1], act_dim, generator,
+                            bound=3e-3 if output == "softplus" else None)
+        low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
         start = (low + high) / 2 if start is None else np.asarray(start, dtype=float)
-        fixed = np.asarray(high) == np.asarray(low)
-        if start.shape != np.shape(low) or not np.all((start > low) | fixed):
-            raise ValueError(f"the actor's start {start.tolist()} must lie above the box's "
-                             f"lower corner {np.asarray(low).tolist()}")
+        fixed = high == low
+        inside = (start > low) & ((start < high) | (output == "softplus"))
+        if start.shape != low.shape or not np.all(inside | fixed):
+            where = "above the box's lower corner" if output == "softplus" else "inside the box"
+            raise ValueError(f"the actor's start {start.tolist()} must lie {where} "
+                             f"{low.tolist()} .. {high.tolist()}")
         start = np.where(fixed, low, start)
+        if output == "softplus":
+            span = (start - low) / _LN2
+        else:
+            span = (high - low) / 2
+            shift = np.arctanh(np.where(fixed, 0.0, (start - low) / np.where(fixed, 1, span) - 1))
+            with torch.no_grad():
+                self.head.bias.add_(torch.as_tensor(shift, dtype=torch.float32))
         self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))
-        self.register_buffer("span", torch.as_tensor((start - low) / _LN2, dtype=torch.float32))
+        self.register_buffer("span", torch.as_tensor(span, dtype=torch.float32))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        """Raw gains ``low + span softplus(z)``, shape ``(B, act_dim)``.
+        """Raw gains ``low + span f(z)``, ``f`` the output map, shape ``(B, act_dim)``.
 
         Parameters
         ----------
@@ -135,7 +160,8 @@ class Actor(nn.Module):
             Raw (unprojected) gains.
         """
         z = self.head(self.body(self.normalise(obs)))
-        return self.low + self.span * F.softplus(z)
+        mapped = F.softplus(z) if self.output == "softplus" else 1.0 + torch.tanh(z)
+        return self.low + self.span * mapped
 
 
 def half_range(low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -160,15 +186,17 @@ class Critic(nn.Module):
 
     Parameters
     ----------
-    obs_dim, act_dim : int
-        Observation and action sizes.
+    obs_dim : int
+        Observation size.
     low, high : ndarray, shape (act_dim,)
         Action box; actions are rescaled to ``[-1, 1]`` over it on input.
     generator : torch.Generator
         Source of the initial weights.
     hidden_state, hidden_action, hidden_merged : tuple of int
         Widths of the state path, the action path and the merged layers (before the scalar
-        output).
+        output). An empty ``hidden_action`` joins the paths: the rescaled action is
+        concatenated with the standardised observation at the state path's input (as
+        Stable-Baselines3's and the TD3 authors' critics take them).
     """
 
     centre: torch.Tensor
@@ -183,9 +211,12 @@ class Critic(nn.Module):
         self.register_buffer("centre", torch.as_tensor((high + low) / 2, dtype=torch.float32))
         self.register_buffer("half_span", torch.as_tensor(half_range(low, high),
                                                           dtype=torch.float32))
-        self.state_path = nn.Sequential(*_mlp((obs_dim, *hidden_state), generator))
-        self.action_path = nn.Sequential(*_mlp((len(low), *hidden_action), generator))
-        merged_in = hidden_state[-1] + hidden_action[-1]
+        joined = not hidden_action
+        state_in = obs_dim + len(low) if joined else obs_dim
+        self.state_path = nn.Sequential(*_mlp((state_in, *hidden_state), generator))
+        self.action_path = (None if joined else
+                            nn.Sequential(*_mlp((len(low), *hidden_action), generator)))
+        merged_in = hidden_state[-1] + (0 if joined else hidden_action[-1])
         self.merged = nn.Sequential(nn.ReLU(),
                                     *_mlp((merged_in, *hidden_merged, 1), generator))
 
@@ -204,6 +235,10 @@ class Critic(nn.Module):
         torch.Tensor, shape (B,)
             Action values.
         """
-        s = self.state_path(self.normalise(obs))
-        a = self.action_path((action - self.centre) / self.half_span)
-        return self.merged(torch.cat([s, a], dim=-1)).squeeze(-1)
+        scaled = (action - self.centre) / self.half_span
+        if self.action_path is None:
+            features = self.state_path(torch.cat([self.normalise(obs), scaled], dim=-1))
+        else:
+            features = torch.cat([self.state_path(self.normalise(obs)),
+                                  self.action_path(scaled)], dim=-1)
+        return self.merged(features).squeeze(-1)

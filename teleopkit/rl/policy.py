@@ -20,8 +20,8 @@ import numpy as np
 if TYPE_CHECKING:
     from teleopkit.rl.networks import Actor
 
-__all__ = ["PRETRAINED", "PRETRAINED_COVERED", "PRETRAINED_LAW", "SHIPPED_POLICIES", "GainPolicy",
-           "resolve_policy"]
+__all__ = ["OUTPUT_MAPS", "PRETRAINED", "PRETRAINED_COVERED", "PRETRAINED_LAW",
+           "SHIPPED_POLICIES", "GainPolicy", "check_output_map", "resolve_policy"]
 
 PRETRAINED = "td3_policy.npz"
 """File name of the paper's tuner in ``teleopkit/data``: trained under the closed form's
@@ -47,6 +47,30 @@ tuner trained under the ``tank:3`` class, whose certificate covers every schedul
 under the same class (:data:`PRETRAINED_LAW`); ``paper`` the paper's tuner (:data:`PRETRAINED`)."""
 
 _DATA = Path(__file__).resolve().parents[1] / "data"
+
+OUTPUT_MAPS = ("softplus", "tanh")
+"""The actor's output maps ``f`` in ``gains = low + span f(z)``: ``softplus(z)`` (the paper's,
+unbounded above) or ``1 + tanh(z)`` (with ``span`` half the box's range: the box and nothing
+beyond it)."""
+
+
+def check_output_map(name: str, label: str = "output") -> None:
+    """Refuse (one line) an output map that is not one of :data:`OUTPUT_MAPS`.
+
+    Parameters
+    ----------
+    name : str
+        The map's name.
+    label : str
+        What the message calls the setting.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is not a map's name.
+    """
+    if name not in OUTPUT_MAPS:
+        raise ValueError(f"{label} must be one of {', '.join(OUTPUT_MAPS)}, got {name!r}")
 
 
 def resolve_policy(source: str | Path) -> Path:
@@ -88,7 +112,7 @@ class GainPolicy:
     obs_mean, obs_std : ndarray, shape (obs_dim,)
         Observation standardisation.
     low, span : ndarray, shape (act_dim,)
-        Output map ``low + span * softplus(z)``.
+        Output map ``low + span * f(z)``, ``f`` given by ``output``.
     metadata : dict, optional
         JSON-serialisable information (training settings, baselines, ...).
     obs_range : tuple of ndarray, optional
@@ -96,12 +120,18 @@ class GainPolicy:
         clipped into this range before anything else, so that the policy never extrapolates
         beyond what it was fitted on (for example the range seen while a gain law was
         searched). None: not clipped.
+    output : {"softplus", "tanh"}
+        The output map ``f``: ``softplus(z)`` (the paper's) or ``1 + tanh(z)``
+        (:data:`OUTPUT_MAPS`).
     """
 
     def __init__(self, weights: list[tuple[np.ndarray, np.ndarray]], obs_mean: np.ndarray,
                  obs_std: np.ndarray, low: np.ndarray, span: np.ndarray,
                  metadata: dict[str, Any] | None = None,
-                 obs_range: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+                 obs_range: tuple[np.ndarray, np.ndarray] | None = None,
+                 output: str = "softplus") -> None:
+        check_output_map(output)
+        self.output = output
         self.weights = [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
                         for w, b in weights]
         self.obs_mean = np.asarray(obs_mean, dtype=np.float64)
@@ -136,12 +166,14 @@ class GainPolicy:
         weights = [(m.weight.detach().numpy().copy(), m.bias.detach().numpy().copy())
                    for m in linears]
         return cls(weights, actor.normalise.mean.numpy(), actor.normalise.std.numpy(),
-                   actor.low.numpy(), actor.span.numpy(), metadata)
+                   actor.low.numpy(), actor.span.numpy(), metadata, output=actor.output)
 
     @property
     def fingerprint(self) -> str:
         """SHA-256 of the weights and maps, 16 hex digits (what the policy computes)."""
         digest = hashlib.sha256()
+        if self.output != "softplus":  # the paper's map leaves the digest as it always was
+            digest.update(self.output.encode())
         for array in (*(a for pair in self.weights for a in pair), self.obs_mean, self.obs_std,
                       self.low, self.span, *(self.obs_range or ())):
             digest.update(np.ascontiguousarray(array).tobytes())
@@ -158,7 +190,8 @@ class GainPolicy:
             x = x @ w.T + b
             if i < last:
                 np.maximum(x, 0.0, out=x)
-        return self.low + self.span * np.logaddexp(0.0, x)
+        mapped = np.logaddexp(0.0, x) if self.output == "softplus" else 1.0 + np.tanh(x)
+        return self.low + self.span * mapped
 
     def save(self, path: str | Path) -> None:
         """Write an ``.npz`` file (no pickled objects).
@@ -170,6 +203,7 @@ class GainPolicy:
         """
         arrays: dict[str, Any] = {"obs_mean": self.obs_mean, "obs_std": self.obs_std,
                                          "low": self.low, "span": self.span,
+                                         "output": np.array(self.output),
                                          "metadata": np.array(json.dumps(self.metadata))}
         for i, (w, b) in enumerate(self.weights):
             arrays[f"w{i}"], arrays[f"b{i}"] = w.astype(np.float32), b.astype(np.float32)
@@ -205,9 +239,11 @@ class GainPolicy:
                 weights = [(data[f"w{i}"], data[f"b{i}"]) for i in range(layers)]
                 metadata = json.loads(str(data["metadata"]))
                 clipped = "obs_lowest" in data.files
+                output = str(data["output"]) if "output" in data.files else "softplus"
                 return cls(weights, data["obs_mean"], data["obs_std"], data["low"],
                            data["span"], metadata,
-                           (data["obs_lowest"], data["obs_highest"]) if clipped else None)
+                           (data["obs_lowest"], data["obs_highest"]) if clipped else None,
+                           output)
         except KeyError as error:
             raise ValueError(f"{path} is not a teleopkit policy file (no {error} array)") from None
         except (ValueError, EOFError, OSError, zipfile.BadZipFile):

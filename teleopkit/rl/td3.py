@@ -23,7 +23,9 @@ softplus, scaled and offset per coordinate so that its range covers the action b
 
 so ``z = 0`` gives ``start`` (the centre of the box unless ``TD3Config.start`` says
 otherwise), ``z -> -inf`` the lower corner, and large ``z`` values above the upper corner (every
-point of the box is reached; the projection takes care of the rest).
+point of the box is reached; the projection takes care of the rest). With
+``TD3Config(output_map="tanh")`` the map is ``low + (high - low) (1 + tanh(z)) / 2`` instead:
+the box and nothing beyond it.
 The environment projects ``a_raw`` (plus exploration noise) onto the certified polytope and the
 replay buffer stores the *applied* action, so the critics learn ``Q(s, a)`` on certified actions
 only. The actor is trained through the projection: its loss is
@@ -73,7 +75,7 @@ from torch.nn import functional as F
 from teleopkit.certification.gain_sets import GainPolytope
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.rl.networks import Actor, Critic, Standardise, half_range
-from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.policy import GainPolicy, check_output_map
 from teleopkit.rl.replay import Batch
 from teleopkit.rl.torch_projection import torch_projection
 from teleopkit.safety.layer import SafetyLayer
@@ -122,7 +124,8 @@ class TD3Config:
     hidden_actor : tuple of int
         Hidden widths of the actor.
     hidden_state, hidden_action, hidden_merged : tuple of int
-        Critic: state path, action path and merged layers (before the scalar output).
+        Critic: state path, action path and merged layers (before the scalar output); an
+        empty ``hidden_action`` joins the paths (observation and action at one input).
     start : tuple of float, optional
         Gains the untrained actor outputs (:class:`~teleopkit.rl.networks.Actor`); default the
         centre of the box. Starting from the best static gains of the certified set makes
@@ -134,6 +137,9 @@ class TD3Config:
         the environment as part of its dynamics (as a library trainer that knows nothing of
         the set learns, e.g. Stable-Baselines3's TD3); every applied gain is projected either
         way.
+    output_map : {"softplus", "tanh"}
+        The actor's output map (:data:`~teleopkit.rl.policy.OUTPUT_MAPS`): the paper's
+        softplus, unbounded above, or a tanh onto the box.
     """
 
     discount: float = 0.99
@@ -156,8 +162,10 @@ class TD3Config:
     hidden_merged: tuple[int, ...] = (60, 36)
     start: tuple[float, ...] | None = None
     critic_action: str = "applied"
+    output_map: str = "softplus"
 
     def __post_init__(self) -> None:
+        check_output_map(self.output_map, "output_map")
         if self.critic_action not in ("applied", "raw"):
             raise ValueError("critic_action must be 'applied' or 'raw', got "
                              f"{self.critic_action!r}")
@@ -247,7 +255,7 @@ class TD3:
         self.generator = torch.Generator().manual_seed(seed)
         cfg = self.config
         self.actor = Actor(obs_dim, low, high, self.generator, cfg.hidden_actor,
-                           None if cfg.start is None else np.asarray(cfg.start))
+                           None if cfg.start is None else np.asarray(cfg.start), cfg.output_map)
         self.critics = nn.ModuleList(Critic(obs_dim, low, high, self.generator, cfg.hidden_state,
                                             cfg.hidden_action, cfg.hidden_merged)
                                      for _ in range(2))

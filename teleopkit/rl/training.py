@@ -54,11 +54,12 @@ from teleopkit.files import atomic_write, run_lock
 from teleopkit.rl.controllers import HeldController
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.recipes import RECIPES, TrainConfig
 from teleopkit.rl.replay import NStepWindow, ReplayBuffer
-from teleopkit.rl.td3 import TD3, TD3Config
+from teleopkit.rl.td3 import TD3
 
-__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "TrainConfig",
-           "TrainResult", "load_checkpoint", "train"]
+__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "RECIPES",
+           "TrainConfig", "TrainResult", "load_checkpoint", "train"]
 
 CHECKPOINT = "checkpoint.pt"
 """File name of the checkpoint in the output directory."""
@@ -81,115 +82,6 @@ CERTIFICATE = "certificate.json"
 
 LOCK = ".lock"
 """Lock file of a directory a training run is using (:func:`~teleopkit.files.run_lock`)."""
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Settings of :func:`train`.
-
-    Parameters
-    ----------
-    total_steps : int
-        Transitions to collect over all sub-environments (rounded up to whole rounds).
-    num_envs : int
-        Scenarios simulated together.
-    seed : int
-        Master seed: network initialisation, target smoothing, replay sampling, exploration noise
-        and scenario draws all derive from it.
-    episode_length : float
-        Duration of the training episodes in seconds (the paper: 40).
-    validation_length : float, optional
-        Duration of the validation episodes in seconds; default ``episode_length``. Training on
-        episodes shorter than the task's puts a larger share of every round into the opening
-        transient, and validating on the task's whole episode keeps the choice of
-        ``best_policy`` a measure of the task (a policy never run past its training episodes
-        can degrade after them).
-    learning_starts : int
-        Transitions collected with uniform random gains before the first update (at least
-        ``num_envs``: the observation statistics come from them).
-    updates_per_step : int
-        Gradient updates per vector step (``num_envs`` transitions).
-    n_step : int
-        Steps each stored transition spans (:class:`~teleopkit.rl.replay.NStepWindow`; 1: the
-        paper's one-step transitions).
-    buffer_size : int
-        Replay capacity in transitions.
-    checkpoint_every : int
-        Rounds between checkpoints (with an output directory).
-    validation_scenarios : int
-        Scenarios on which the deterministic policy is scored after every round (0: never);
-        the best-scoring actor is kept as ``best_policy``. The policy's quality fluctuates
-        from round to round (``examples/train_pretrained.py``), so this selection is what makes
-        a fixed budget dependable.
-    validation_seed : int
-        Seed of the validation scenarios (apart from the evaluation seed
-        :data:`~teleopkit.rl.evaluation.EVAL_SEED` and the training streams).
-    td3 : TD3Config
-        Agent hyperparameters. Default: the paper's, except learning rates of 1e-3 for actor and
-        critics (with 1e-4 the held-out cost after 10 rounds was 25 % above the best static
-        gains, with 1e-3 9 % below; same seed and data) and a discount of 0.95 (with 0.99 the
-        validation cost fell 10 % below the best static gains' within 10 rounds for three seeds of
-        six, with 0.95 for five, in rounds 7 to 9; ``examples/train_pretrained.py``).
-    """
-
-    total_steps: int = 1_600_000
-    num_envs: int = 16
-    seed: int = 0
-    episode_length: float = 40.0
-    validation_length: float | None = None
-    learning_starts: int = 64_000
-    updates_per_step: int = 1
-    n_step: int = 1
-    buffer_size: int = 1_000_000
-    checkpoint_every: int = 1
-    validation_scenarios: int = 16
-    validation_seed: int = 4_242
-    td3: TD3Config = field(
-        default_factory=lambda: TD3Config(discount=0.95, actor_lr=1e-3, critic_lr=1e-3))
-
-    def __post_init__(self) -> None:
-        for name in ("total_steps", "num_envs", "updates_per_step", "n_step", "buffer_size",
-                     "checkpoint_every"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if self.learning_starts < self.num_envs:
-            raise ValueError(f"learning_starts must be at least num_envs ({self.num_envs}), "
-                             f"got {self.learning_starts}")
-        lengths = {"episode_length": self.episode_length}
-        if self.validation_length is not None:
-            lengths["validation_length"] = self.validation_length
-        for name, value in lengths.items():
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be positive, got {value}")
-        if self.seed < 0:
-            raise ValueError(f"seed must be non-negative, got {self.seed}")
-        if self.validation_scenarios < 0:
-            raise ValueError("validation_scenarios must be non-negative, got "
-                             f"{self.validation_scenarios}")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (JSON)."""
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        """Inverse of :meth:`to_dict`.
-
-        Parameters
-        ----------
-        data : dict
-            Plain data as written by :meth:`to_dict` (for example read from ``config.json``).
-
-        Returns
-        -------
-        TrainConfig
-            The configuration.
-        """
-        td3 = dict(data["td3"])
-        for key, value in td3.items():
-            if isinstance(value, list):
-                td3[key] = tuple(value)
-        return cls(**{**data, "td3": TD3Config(**td3)})
 
 
 @dataclass
@@ -303,7 +195,7 @@ class _Run:
         """Raw gains: uniform in the box while warming up, else actor plus noise.
 
         Under a scheduled class the stiffness part of the exploration is drawn once per episode
-        (:meth:`_hold_stiffness`).
+        unless ``stiffness_exploration`` is ``"step"`` (:meth:`_hold_stiffness`).
         """
         if self.counters.step < self.config.learning_starts:
             action = self.explore.uniform(self.low, self.high, size=(len(obs), len(self.low)))
@@ -338,12 +230,13 @@ class _Run:
         return np.concatenate([held, action[:, n:]], axis=1)
 
     def _draw_held(self) -> None:
-        """Draw the episode's stiffness exploration (under a scheduled class only).
+        """Draw the episode's stiffness exploration (under a scheduled class, if held).
 
         Warm-up: the same fraction of the box on every joint; noise: the same unit normal
         offset on every joint (scaled by the current standard deviation when used).
         """
-        if self.env.safety_layer.run_time_state(1).shape[1] == 0:
+        if (self.config.stiffness_exploration == "step"
+                or self.env.safety_layer.run_time_state(1).shape[1] == 0):
             return
         n = len(self.low) // 2
         fraction = self.explore.uniform(size=(self.config.num_envs, 1))

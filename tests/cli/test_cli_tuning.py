@@ -93,6 +93,46 @@ def test_train_command_refuses_to_mix_runs(tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
 
 
+def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
+    """The fast recipe by default (10 s rounds, a tanh map); a resumed run keeps its recipe and
+    refuses another in one line."""
+    from teleopkit.rl.policy import GainPolicy
+    from teleopkit.rl.training import RECIPES, TrainConfig
+
+    out = tmp_path / "fast"
+    done = teleopkit("train", "--steps", "10", "--envs", "1", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    recorded = TrainConfig.from_dict(json.loads((out / "config.json").read_text()))
+    fast = RECIPES["fast"]
+    assert recorded.td3 == fast.td3 and recorded.episode_length == fast.episode_length
+    assert recorded.learning_starts == 500  # half of the one round of 1000 periods
+    assert len(pd.read_csv(out / "train_log.csv")) == 1
+    assert GainPolicy.load(out / "policy.npz").output == "tanh"
+    refused = teleopkit("train", "--steps", "2000", "--envs", "1", "--resume", "--recipe",
+                        "paper", "--out", str(out))
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    assert "has --recipe fast" in refused.stderr
+
+
+def test_train_takes_the_papers_recipe_by_name(tmp_path, monkeypatch):
+    """The paper's recipe as recorded: its networks, 40 s rounds, a warm-up of one round."""
+    import teleopkit.rl.training as training
+
+    given = []
+
+    def record(settings, *args, **kwargs):
+        given.append(settings)
+        raise KeyboardInterrupt  # the command stops as on Ctrl-C: nothing trained
+
+    monkeypatch.setattr(training, "train", record)
+    code = main(["train", "--recipe", "paper", "--steps", "100000", "--envs", "2", "--seed",
+                 "3", "--out", str(tmp_path / "paper")])
+    paper = training.RECIPES["paper"]
+    assert code == 130 and given[0].td3 == paper.td3 and given[0].episode_length == 40
+    assert (given[0].num_envs, given[0].seed, given[0].learning_starts) == (2, 3, 8000)
+    assert given[0].total_steps == 104_000  # whole rounds of 2 x 4000 periods
+
+
 @pytest.mark.slow
 def test_reproduce_command_writes_figures_and_table(tmp_path):
     done = teleopkit("reproduce", "--out", str(tmp_path))

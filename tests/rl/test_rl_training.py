@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 import torch
 
+from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
 from teleopkit.rl.policy import GainPolicy
@@ -24,7 +25,9 @@ from teleopkit.rl.training import (
     CHECKPOINT,
     LOG,
     POLICY,
+    RECIPES,
     TrainConfig,
+    _Run,
     load_checkpoint,
     train,
 )
@@ -257,3 +260,37 @@ def test_config_rejects_bad_values(bad):
 
 def test_config_round_trips_through_plain_data():
     assert TrainConfig.from_dict(TINY.to_dict()) == TINY
+    for recipe in RECIPES.values():
+        assert TrainConfig.from_dict(recipe.to_dict()) == recipe
+
+
+def _explored_stiffness(exploration, variation, warm):
+    """The stiffness exploration of two steps of one episode, ``(2, scenarios, joints)``: the
+    uniform gains of the warm-up, else the noise added to the actor's gains."""
+    config = replace(TINY, stiffness_exploration=exploration,
+                     learning_starts=TINY.learning_starts if warm else TINY.num_envs)
+    run = _Run(config, FlexTeleopConfig(certificate=default_certificate(variation=variation)))
+    if not warm:
+        run.counters.step = config.learning_starts
+    obs, _ = run.env.reset(seed=0)
+    run._draw_held()
+    offset = 0 if warm else run.agent.act(obs)[:, :2]  # the exploration alone
+    return np.stack([run._actions(obs)[:, :2] - offset for _ in range(2)])
+
+
+@pytest.mark.parametrize("warm", [True, False])
+def test_stiffness_exploration_is_held_per_episode_or_drawn_per_step(warm):
+    """Under a tank the stiffness explores once per episode (the same on both joints), unless
+    asked per step; under a frozen class every gain explores per step."""
+    held = _explored_stiffness("episode", "tank:3", warm)
+    np.testing.assert_array_equal(held[0], held[1])
+    np.testing.assert_array_equal(held[..., 0], held[..., 1])
+    assert np.unique(held[0, :, 0]).size == TINY.num_envs  # a draw per scenario
+    for stepped in (_explored_stiffness("step", "tank:3", warm),
+                    _explored_stiffness("episode", "frozen", warm)):
+        assert np.all(stepped[0] != stepped[1])
+
+
+def test_stiffness_exploration_must_be_named():
+    with pytest.raises(ValueError, match="stiffness_exploration must be 'episode' or 'step'"):
+        replace(TINY, stiffness_exploration="round")
