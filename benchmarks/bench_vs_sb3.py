@@ -107,6 +107,7 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
             log = pd.read_csv(f"{out}/train_log.csv")
             row = log.iloc[-1]
             found.update(round=done, cost=row["validation_cost"], wall=row["wall_time"],
+                         best=log["validation_cost"].min(),
                          **{part: log[f"{part}_time"].sum() for part in SPLIT})
             if row["validation_cost"] <= target:
                 raise _Reached
@@ -158,6 +159,7 @@ def _sb3(setting: Setting, rounds: int, target: float,
             cost = env.validation_cost(self.model)
             seconds["validation"] += time.perf_counter() - began
             found.update(round=self.num_timesteps // per_round, cost=cost,
+                         best=min(cost, found.get("best", cost)),
                          wall=time.perf_counter() - start, **env.inner.seconds, **seconds)
             return cost > target
 
@@ -294,7 +296,8 @@ def main() -> None:
     for name in args.which:
         for setting in _grid(args, name):
             found = trainers[name](setting, args.rounds, target, config)
-            mark = "" if found["cost"] <= target else f" (not within {args.rounds} rounds)"
+            mark = ("" if found["cost"] <= target else
+                    f" (not within {args.rounds} rounds; best {found['best']:.0f})")
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
             print(f"| {setting.trainer} | {setting.envs} | {setting.episode_length:g} | "
                   f"{setting.n_step} | "
