@@ -2,7 +2,8 @@
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
         [--which teleopkit sb3] [--recipes fast paper] [--discounts 0.95 0.99] [--envs 16 ...]
-        [--learning-rates 1e-3 ...] [--n-steps 1 ...] [--critic-actions applied raw]
+        [--learning-rates 1e-3 ...] [--batch-sizes 512 ...] [--n-steps 1 ...]
+        [--critic-actions applied raw]
         [--setup paper|mixed|FILE] [--observation paper|adaptive] [--below 0.1]
         [--episode-length 10]
 
@@ -10,23 +11,22 @@ Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios, 
 covering certificate ``tank:3``, so the same safety layer projects every action), same machine,
 one run after the other. teleopkit's trainer runs its named recipes
 (:data:`~teleopkit.rl.recipes.RECIPES`, ``--recipes``); SB3's TD3 its best settings found here
-(:data:`SB3_BEST`: discount 0.99, learning rates 1e-3, 16 scenarios, 10 s training episodes).
-A grid option given on the command line (parallel scenarios, discounts, learning rates, episode
-length; the steps per transition and what the critics value of teleopkit's trainer) replaces
-those values for both. Common to both: batch 512, a warm-up of one round of uniform random
-gains, rewards scaled by 0.01, one gradient update per vector step of 16 transitions,
-observations standardised with statistics frozen from the warm-up, the paper's network widths,
-Gaussian exploration of 4 gain units. After every round (one training episode of every
-scenario) the deterministic actor is validated on the recipes' 16 validation scenarios, whole
-40 s episodes; a run stops at the first round whose validation cost is 10 % below that of the
-best static gains of the frozen class there (``--below``: the fraction below them; ``--setup``
-and ``--observation`` race on another setup, for example the adaptive tuner's ``--setup mixed
---observation adaptive``, the static gains searched for it). Printed per trainer, setting and
-seed: that
-round, the wall-clock time to it (training and validations; the static gains' search is
-excluded and printed apart) and where that time went: the simulator, the safety layer's
-projection, the gradient updates (SB3: its ``train`` calls, sampling included) and the
-validations.
+(:data:`SB3_BEST`: discount 0.99, learning rates 1e-3, 16 scenarios, 10 s training episodes). A
+grid option given on the command line (parallel scenarios, discounts, learning rates, minibatch
+sizes, episode length; the steps per transition and what the critics value of teleopkit's
+trainer) replaces those values for both. Common to both: batch 512 unless given, a warm-up of
+one round of uniform random gains, rewards scaled by 0.01, one gradient update per vector step
+of 16 transitions, observations standardised with statistics frozen from the warm-up, the
+paper's network widths, Gaussian exploration of 4 gain units. After every round (one training
+episode of every scenario) the deterministic actor is validated on the recipes' 16 validation
+scenarios, whole 40 s episodes; a run stops at the first round whose validation cost is 10 %
+below that of the best static gains of the frozen class there (``--below``: the fraction below
+them; ``--setup`` and ``--observation`` race on another setup, for example the adaptive tuner's
+``--setup mixed --observation adaptive``, the static gains searched for it).
+Printed per trainer, setting and seed: that round, the wall-clock time to it (training and
+validations; the static gains' search is excluded and printed apart) and where that time went:
+the simulator, the safety layer's projection, the gradient updates (SB3: its ``train`` calls,
+sampling included) and the validations.
 
 What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
 the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
@@ -64,7 +64,8 @@ REWARD_SCALE = RECIPE.td3.reward_scale
 
 SB3_BEST = {"discount": 0.99, "learning_rate": 1e-3, "envs": 16, "episode_length": 10.0}
 """SB3's best settings on the paper's benchmark (searched: discounts 0.95 and 0.99, learning
-rates 3e-4 to 3e-3, 16 and 64 scenarios, 10 and 40 s training episodes)."""
+rates 3e-4 to 3e-3, 16 and 64 scenarios, 10 and 40 s training episodes, minibatches of 128 and
+512; batch 512 is the grid's default)."""
 
 
 SPLIT = ("simulation", "projection", "update", "validation")
@@ -86,6 +87,7 @@ class Setting(NamedTuple):
     n_step: int
     critic_action: str
     episode_length: float
+    batch_size: int
 
 
 def _teleopkit(setting: Setting, rounds: int, target: float,
@@ -100,7 +102,8 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
                        validation_length=config.episode_length, n_step=setting.n_step,
                        buffer_size=max(recipe.buffer_size, 2 * per_round),
                        td3=replace(recipe.td3, discount=setting.discount, actor_lr=rate,
-                                   critic_lr=rate, critic_action=setting.critic_action))
+                                   critic_lr=rate, critic_action=setting.critic_action,
+                                   batch_size=setting.batch_size))
     found: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as out:
         def check(done: int) -> None:
@@ -134,7 +137,7 @@ def _sb3(setting: Setting, rounds: int, target: float,
     half = (env.high - env.low) / 2
     model = TD3("MlpPolicy", env, learning_rate=setting.learning_rate,
                 buffer_size=max(RECIPE.buffer_size, 2 * per_round),
-                learning_starts=per_round, batch_size=RECIPE.td3.batch_size, tau=0.005,
+                learning_starts=per_round, batch_size=setting.batch_size, tau=0.005,
                 gamma=setting.discount, train_freq=(1, "step"), gradient_steps=1,
                 policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5,
                 action_noise=NormalActionNoise(np.zeros(4), RECIPE.td3.exploration_std / half),
@@ -262,6 +265,8 @@ def main() -> None:
                              "[default: 16]")
     parser.add_argument("--learning-rates", nargs="+", type=float, default=None,
                         help="learning rates of actor and critics, both trainers [default: 1e-3]")
+    parser.add_argument("--batch-sizes", nargs="+", type=int, default=None,
+                        help="minibatch sizes of both trainers [default: 512]")
     parser.add_argument("--n-steps", nargs="+", type=int, default=None,
                         help="steps per transition of teleopkit's trainer [default: the recipe's]")
     parser.add_argument("--critic-actions", nargs="+", default=None, choices=["applied", "raw"],
@@ -290,9 +295,9 @@ def main() -> None:
     config = FlexTeleopConfig(setup, certificate, observation=args.observation)
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
     print("\n| trainer | envs | episode [s] | n-step | critic values | discount | learning rate "
-          "| seed | round | validation cost | time to it [s] | simulation | projection | updates "
-          "| validation |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| batch | seed | round | validation cost | time to it [s] | simulation | projection "
+          "| updates | validation |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.which:
         for setting in _grid(args, name):
             found = trainers[name](setting, args.rounds, target, config)
@@ -300,10 +305,9 @@ def main() -> None:
                     f" (not within {args.rounds} rounds; best {found['best']:.0f})")
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
             print(f"| {setting.trainer} | {setting.envs} | {setting.episode_length:g} | "
-                  f"{setting.n_step} | "
-                  f"{setting.critic_action} | "
-                  f"{setting.discount:g} | "
-                  f"{setting.learning_rate:g} | {setting.seed} | {found['round']:.0f} | "
+                  f"{setting.n_step} | {setting.critic_action} | {setting.discount:g} | "
+                  f"{setting.learning_rate:g} | {setting.batch_size} | {setting.seed} | "
+                  f"{found['round']:.0f} | "
                   f"{found['cost']:.0f}{mark} | {found['wall']:.0f} | {split} |", flush=True)
 
 
@@ -329,12 +333,14 @@ def _settings(args: argparse.Namespace, trainer: str, discount: float, rate: flo
               n_step: int, valued: str, length: float) -> list[Setting]:
     """One trainer's settings: the command line's grid where given, else the values passed."""
     ours = trainer != "sb3"
-    return [Setting(trainer, seed, gamma, lr, count, n, value, args.episode_length or length)
+    return [Setting(trainer, seed, gamma, lr, count, n, value, args.episode_length or length,
+                    batch)
             for count in args.envs or [envs]
             for n in (args.n_steps or [n_step] if ours else [1])
             for value in (args.critic_actions or [valued] if ours else ["raw"])
             for gamma in args.discounts or [discount]
-            for lr in args.learning_rates or [rate] for seed in args.seeds]
+            for lr in args.learning_rates or [rate]
+            for batch in args.batch_sizes or [RECIPE.td3.batch_size] for seed in args.seeds]
 
 if __name__ == "__main__":
     main()
