@@ -28,7 +28,8 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.training import RECIPES, train
+from teleopkit.rl.recipes import RECIPES
+from teleopkit.rl.training import train
 
 
 class _Reached(Exception):

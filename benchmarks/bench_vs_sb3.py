@@ -56,7 +56,8 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.training import RECIPES, train
+from teleopkit.rl.recipes import RECIPES
+from teleopkit.rl.training import train
 from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
 
 RECIPE = RECIPES["paper"]
@@ -80,6 +81,7 @@ class Setting(NamedTuple):
     """One trainer's settings in the race."""
 
     trainer: str
+    recipe: str
     seed: int
     discount: float
     learning_rate: float
@@ -95,7 +97,7 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
     """Round, validation cost, wall time and its split at the first round below the target."""
     per_round = setting.envs * _training(config, setting).max_steps
     rate = setting.learning_rate
-    recipe = RECIPES[setting.trainer.split()[1]]
+    recipe = RECIPES[setting.recipe]
     settings = replace(recipe, total_steps=rounds * per_round, seed=setting.seed,
                        num_envs=setting.envs, learning_starts=per_round,
                        episode_length=setting.episode_length,
@@ -304,7 +306,8 @@ def main() -> None:
             mark = ("" if found["cost"] <= target else
                     f" (not within {args.rounds} rounds; best {found['best']:.0f})")
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
-            print(f"| {setting.trainer} | {setting.envs} | {setting.episode_length:g} | "
+            label = f"{setting.trainer} {setting.recipe}".rstrip()
+            print(f"| {label} | {setting.envs} | {setting.episode_length:g} | "
                   f"{setting.n_step} | {setting.critic_action} | {setting.discount:g} | "
                   f"{setting.learning_rate:g} | {setting.batch_size} | {setting.seed} | "
                   f"{found['round']:.0f} | "
@@ -318,29 +321,30 @@ def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
     option here, and its critics value the raw actions.
     """
     if name == "sb3":
-        return _settings(args, "sb3", SB3_BEST["discount"], SB3_BEST["learning_rate"],
+        return _settings(args, "sb3", "", SB3_BEST["discount"], SB3_BEST["learning_rate"],
                          SB3_BEST["envs"], 1, "raw", SB3_BEST["episode_length"])
     grid = []
     for recipe_name in args.recipes:
         recipe = RECIPES[recipe_name]
-        grid += _settings(args, f"teleopkit {recipe_name}", recipe.td3.discount,
+        grid += _settings(args, "teleopkit", recipe_name, recipe.td3.discount,
                           recipe.td3.actor_lr, recipe.num_envs, recipe.n_step,
                           recipe.td3.critic_action, recipe.episode_length)
     return grid
 
 
-def _settings(args: argparse.Namespace, trainer: str, discount: float, rate: float, envs: int,
-              n_step: int, valued: str, length: float) -> list[Setting]:
+def _settings(args: argparse.Namespace, trainer: str, recipe: str, discount: float, rate: float,
+              envs: int, n_step: int, valued: str, length: float) -> list[Setting]:
     """One trainer's settings: the command line's grid where given, else the values passed."""
-    ours = trainer != "sb3"
-    return [Setting(trainer, seed, gamma, lr, count, n, value, args.episode_length or length,
-                    batch)
+    ours = trainer == "teleopkit"
+    return [Setting(trainer, recipe, seed, gamma, lr, count, n, value,
+                    args.episode_length or length, batch)
             for count in args.envs or [envs]
             for n in (args.n_steps or [n_step] if ours else [1])
             for value in (args.critic_actions or [valued] if ours else ["raw"])
             for gamma in args.discounts or [discount]
             for lr in args.learning_rates or [rate]
             for batch in args.batch_sizes or [RECIPE.td3.batch_size] for seed in args.seeds]
+
 
 if __name__ == "__main__":
     main()

@@ -60,7 +60,8 @@ from teleopkit.rl.comparison import REFERENCE, Comparators, compare
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig
 from teleopkit.rl.evaluation import summarise, to_markdown
 from teleopkit.rl.policy import GainPolicy
-from teleopkit.rl.training import RECIPES, train
+from teleopkit.rl.recipes import RECIPES
+from teleopkit.rl.training import train
 
 RECIPE = RECIPES["paper"]  # 25 rounds of 16 x 40 s, discount 0.95, learning rates 1e-3
 DATA = Path(__file__).resolve().parents[1] / "teleopkit" / "data" / "td3_covered_policy.npz"

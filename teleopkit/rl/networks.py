@@ -4,10 +4,10 @@ The actor maps observations to raw gains through one of two output maps
 (:data:`~teleopkit.rl.policy.OUTPUT_MAPS`): the paper's ``low + (start - low) softplus(z) / ln 2``
 (``z = 0`` gives ``start``, by default the centre of the action box; unbounded above), or
 ``low + (high - low) (1 + tanh(z)) / 2`` (the box and nothing else, as Stable-Baselines3's TD3
-squashes its actions). The critic has a state
-path and an action path merged into a scalar (the paper's), or one path that takes both at its
-input. Both standardise their inputs with fixed statistics, and every weight is drawn from a
-generator the caller owns (the global RNG is never touched).
+squashes its actions). The critic has a state path and an action path merged into a scalar (the
+paper's), or one path that takes both at its input. Both standardise their inputs with fixed
+statistics, and every weight is drawn from a generator the caller owns (the global RNG is never
+touched).
 """
 
 from __future__ import annotations
@@ -102,8 +102,8 @@ class Actor(nn.Module):
         The gains at ``z = 0``, where the untrained actor starts (default the centre of the
         box). Softplus map: strictly above ``low``, the map becomes ``low + (start - low)
         softplus(z) / ln 2``, which still reaches every gain of the box. Tanh map: strictly
-        inside the box, the last layer's bias is offset by ``artanh(2 (start - low) / (high -
-        low) - 1)``. A gain whose range is a single value (``low == high``, for example a
+        inside the box, the last layer's bias is offset by ``artanh((start - centre) /
+        ((high - low) / 2))``. A gain whose range is a single value (``low == high``, for example a
         stiffness held constant) is that value.
     output : {"softplus", "tanh"}
         The output map (:data:`~teleopkit.rl.policy.OUTPUT_MAPS`). The softplus map's last
@@ -140,7 +140,7 @@ class Actor(nn.Module):
             span = (start - low) / _LN2
         else:
             span = (high - low) / 2
-            shift = np.arctanh(np.where(fixed, 0.0, (start - low) / np.where(fixed, 1, span) - 1))
+            shift = np.arctanh((start - (low + high) / 2) / half_range(low, high))
             with torch.no_grad():
                 self.head.bias.add_(torch.as_tensor(shift, dtype=torch.float32))
         self.register_buffer("low", torch.as_tensor(low, dtype=torch.float32))

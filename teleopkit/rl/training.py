@@ -54,12 +54,12 @@ from teleopkit.files import atomic_write, run_lock
 from teleopkit.rl.controllers import HeldController
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.policy import GainPolicy
-from teleopkit.rl.recipes import RECIPES, TrainConfig
+from teleopkit.rl.recipes import TrainConfig
 from teleopkit.rl.replay import NStepWindow, ReplayBuffer
 from teleopkit.rl.td3 import TD3
 
-__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "RECIPES",
-           "TrainConfig", "TrainResult", "load_checkpoint", "train"]
+__all__ = ["BEST_POLICY", "CERTIFICATE", "CHECKPOINT", "CONFIG", "LOG", "POLICY", "TrainConfig",
+           "TrainResult", "load_checkpoint", "train"]
 
 CHECKPOINT = "checkpoint.pt"
 """File name of the checkpoint in the output directory."""

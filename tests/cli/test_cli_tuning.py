@@ -97,7 +97,7 @@ def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
     """The fast recipe by default (10 s rounds, a tanh map); a resumed run keeps its recipe and
     refuses another in one line."""
     from teleopkit.rl.policy import GainPolicy
-    from teleopkit.rl.training import RECIPES, TrainConfig
+    from teleopkit.rl.recipes import RECIPES, TrainConfig
 
     out = tmp_path / "fast"
     done = teleopkit("train", "--steps", "10", "--envs", "1", "--out", str(out))
@@ -117,6 +117,7 @@ def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
 def test_train_takes_the_papers_recipe_by_name(tmp_path, monkeypatch):
     """The paper's recipe as recorded: its networks, 40 s rounds, a warm-up of one round."""
     import teleopkit.rl.training as training
+    from teleopkit.rl.recipes import RECIPES
 
     given = []
 
@@ -127,7 +128,7 @@ def test_train_takes_the_papers_recipe_by_name(tmp_path, monkeypatch):
     monkeypatch.setattr(training, "train", record)
     code = main(["train", "--recipe", "paper", "--steps", "100000", "--envs", "2", "--seed",
                  "3", "--out", str(tmp_path / "paper")])
-    paper = training.RECIPES["paper"]
+    paper = RECIPES["paper"]
     assert code == 130 and given[0].td3 == paper.td3 and given[0].episode_length == 40
     assert (given[0].num_envs, given[0].seed, given[0].learning_starts) == (2, 3, 8000)
     assert given[0].total_steps == 104_000  # whole rounds of 2 x 4000 periods

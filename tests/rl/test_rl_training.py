@@ -19,13 +19,13 @@ from teleopkit.certification.certifier import default_certificate
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
 from teleopkit.rl.policy import GainPolicy
+from teleopkit.rl.recipes import RECIPES
 from teleopkit.rl.td3 import TD3, TD3Config
 from teleopkit.rl.training import (
     BEST_POLICY,
     CHECKPOINT,
     LOG,
     POLICY,
-    RECIPES,
     TrainConfig,
     _Run,
     load_checkpoint,
