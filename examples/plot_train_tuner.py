@@ -67,10 +67,9 @@ STATIC = (8, 4, 30) if SMALL else (16, 8, 200)
 # and fill the replay buffer; the networks' input standardisation is fixed from them. The agent
 # settings, :class:`teleopkit.rl.td3.TD3Config`, are the paper's except for the learning rates
 # and the discount (the defaults of ``TrainConfig``; the docstring says why), here with a smaller
-# minibatch on the small budget. These are the paper's recipe; ``teleopkit train`` runs the fast
-# one by default, which trains on 10 s episodes and validates on 40 s ones
-# (:data:`teleopkit.rl.recipes.RECIPES`, ``--recipe``), and ``replace(RECIPES["fast"], ...)``
-# starts from it in Python.
+# minibatch on the small budget. These are the paper's recipe, ``teleopkit train``'s default;
+# :data:`teleopkit.rl.recipes.RECIPES` also holds a fast one that trains on 10 s episodes and
+# validates on 40 s ones (``--recipe fast``; ``replace(RECIPES["fast"], ...)`` in Python).
 env_config = FlexTeleopConfig(episode_length=EPISODE)
 per_round = ENVS * env_config.max_steps
 config = TrainConfig(

@@ -145,10 +145,11 @@ RECIPES: Mapping[str, TrainConfig] = MappingProxyType({
 })
 """Named training recipes (``teleopkit train --recipe``), each for 1.6 M transitions.
 
-``"paper"``: the paper's (:class:`TrainConfig`'s defaults): 25 rounds of 16 scenarios of 40 s,
-the paper's networks (softplus output, a critic with state and action paths), critics valuing
-the applied (certified) gains with the actor trained through the projection, discount 0.95,
-learning rates 1e-3, the stiffness exploration held per episode under a scheduled class.
+``"paper"``: the paper's (:class:`TrainConfig`'s defaults, ``teleopkit train``'s): 25 rounds of
+16 scenarios of 40 s, the paper's networks (softplus output, a critic with state and action
+paths), critics valuing the applied (certified) gains with the actor trained through the
+projection, discount 0.95, learning rates 1e-3, the stiffness exploration held per episode under
+a scheduled class.
 
 ``"fast"``: 100 rounds of 16 scenarios of 10 s, validated on whole 40 s episodes; critics valuing
 the raw gains (clipped to the box) through one joined path, a tanh output onto the box, every
@@ -157,5 +158,7 @@ opening transient, where a tuner earns its gain over constant gains, in its firs
 episodes put four times as large a share of every round there. On the paper's benchmark the
 fast recipe came 10 % below the frozen class's best static gains in a median of 170 s over four
 seeds (the paper's recipe: 237 s), and its whole training ended lower for each of three seeds
-(``benchmarks/README.md``, ``bench_vs_sb3.py``).
+(``benchmarks/README.md``, ``bench_vs_sb3.py``). But its tuners harm off their setup: from a
+start at rest they cost 2 to 4 times as much as the best constant gains (the paper's recipe's:
++10 %).
 """

@@ -94,13 +94,14 @@ def test_train_command_refuses_to_mix_runs(tmp_path):
 
 
 def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
-    """The fast recipe by default (10 s rounds, a tanh map); a resumed run keeps its recipe and
+    """The fast recipe on request (10 s rounds, a tanh map); a resumed run keeps its recipe and
     refuses another in one line."""
     from teleopkit.rl.policy import GainPolicy
     from teleopkit.rl.recipes import RECIPES, TrainConfig
 
     out = tmp_path / "fast"
-    done = teleopkit("train", "--steps", "10", "--envs", "1", "--out", str(out))
+    done = teleopkit("train", "--recipe", "fast", "--steps", "10", "--envs", "1", "--out",
+                     str(out))
     assert done.returncode == 0, done.stderr
     recorded = TrainConfig.from_dict(json.loads((out / "config.json").read_text()))
     fast = RECIPES["fast"]
@@ -114,7 +115,8 @@ def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
     assert "has --recipe fast" in refused.stderr
 
 
-def test_train_takes_the_papers_recipe_by_name(tmp_path, monkeypatch):
+@pytest.mark.parametrize("named", [True, False])
+def test_train_takes_the_papers_recipe_by_default_and_by_name(tmp_path, monkeypatch, named):
     """The paper's recipe as recorded: its networks, 40 s rounds, a warm-up of one round."""
     import teleopkit.rl.training as training
     from teleopkit.rl.recipes import RECIPES
@@ -126,8 +128,8 @@ def test_train_takes_the_papers_recipe_by_name(tmp_path, monkeypatch):
         raise KeyboardInterrupt  # the command stops as on Ctrl-C: nothing trained
 
     monkeypatch.setattr(training, "train", record)
-    code = main(["train", "--recipe", "paper", "--steps", "100000", "--envs", "2", "--seed",
-                 "3", "--out", str(tmp_path / "paper")])
+    code = main(["train", *(["--recipe", "paper"] if named else []), "--steps", "100000",
+                 "--envs", "2", "--seed", "3", "--out", str(tmp_path / "paper")])
     paper = RECIPES["paper"]
     assert code == 130 and given[0].td3 == paper.td3 and given[0].episode_length == 40
     assert (given[0].num_envs, given[0].seed, given[0].learning_starts) == (2, 3, 8000)
