@@ -3,30 +3,32 @@
     NUMBA_NUM_THREADS=1 python benchmarks/bench_vs_sb3.py [--seeds 0 1] [--rounds 12]
         [--which teleopkit sb3] [--recipes fast paper] [--discounts 0.95 0.99] [--envs 16 ...]
         [--learning-rates 1e-3 ...] [--batch-sizes 512 ...] [--n-steps 1 ...]
-        [--critic-actions applied raw]
+        [--critic-actions applied raw] [--starts centre "best static"]
         [--setup paper|mixed|FILE] [--observation paper|adaptive] [--below 0.1]
         [--episode-length 10]
 
 Same environment (:class:`~teleopkit.rl.env.FlexTeleopVectorEnv`, 16 scenarios, the recipes'
-covering certificate ``tank:3``, so the same safety layer projects every action), same machine,
-one run after the other. teleopkit's trainer runs its named recipes
+covering certificate ``tank:3``, so the same safety layer projects every action), same machine, one
+run after the other. teleopkit's trainer runs its named recipes
 (:data:`~teleopkit.rl.recipes.RECIPES`, ``--recipes``); SB3's TD3 its best settings found here
 (:data:`SB3_BEST`: discount 0.99, learning rates 1e-3, 16 scenarios, 10 s training episodes). A
 grid option given on the command line (parallel scenarios, discounts, learning rates, minibatch
-sizes, episode length; the steps per transition and what the critics value of teleopkit's
-trainer) replaces those values for both. Common to both: batch 512 unless given, a warm-up of
-one round of uniform random gains, rewards scaled by 0.01, one gradient update per vector step
-of 16 transitions, observations standardised with statistics frozen from the warm-up, the
-paper's network widths, Gaussian exploration of 4 gain units. After every round (one training
-episode of every scenario) the deterministic actor is validated on the recipes' 16 validation
-scenarios, whole 40 s episodes; a run stops at the first round whose validation cost is 10 %
-below that of the best static gains of the frozen class there (``--below``: the fraction below
+sizes, episode length, the actor's start; the steps per transition and what the critics value of
+teleopkit's trainer) replaces those values for both. An actor started at the best constant gains of
+the covering class (``--starts "best static"``; teleopkit's ``actor_start``, for SB3 its actor's
+last bias offset to play them) pays their search in its time. Common to both: batch 512 unless
+given, a warm-up of one round of uniform random gains, rewards scaled by 0.01, one gradient update
+per vector step of 16 transitions, observations standardised with statistics frozen from the
+warm-up, the paper's network widths, Gaussian exploration of 4 gain units. After every round (one
+training episode of every scenario) the deterministic actor is validated on the recipes' 16
+validation scenarios, whole 40 s episodes; a run stops at the first round whose validation cost is
+10 % below that of the best static gains of the frozen class there (``--below``: the fraction below
 them; ``--setup`` and ``--observation`` race on another setup, for example the adaptive tuner's
-``--setup mixed --observation adaptive``, the static gains searched for it).
-Printed per trainer, setting and seed: that round, the wall-clock time to it (training and
-validations; the static gains' search is excluded and printed apart) and where that time went:
-the simulator, the safety layer's projection, the gradient updates (SB3: its ``train`` calls,
-sampling included) and the validations.
+``--setup mixed --observation adaptive``, the static gains searched for it). Printed per trainer,
+setting and seed: that round, the wall-clock time to it (training and validations, and the search
+of an actor's start; the frozen class's static gains' search, for the target, is excluded and
+printed apart) and where that time went: the simulator, the safety layer's projection, the gradient
+updates (SB3: its ``train`` calls, sampling included) and the validations.
 
 What differs is only the trainer: teleopkit's TD3 (batched experience, the actor trained through
 the exact projection, fused Adam) against SB3's TD3 on an SB3 ``VecEnv`` view of the same batched
@@ -56,14 +58,15 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
-from teleopkit.rl.recipes import RECIPES
+from teleopkit.rl.recipes import ACTOR_STARTS, RECIPES
 from teleopkit.rl.training import train
 from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
 
 RECIPE = RECIPES["paper"]
 REWARD_SCALE = RECIPE.td3.reward_scale
 
-SB3_BEST = {"discount": 0.99, "learning_rate": 1e-3, "envs": 16, "episode_length": 10.0}
+SB3_BEST = {"discount": 0.99, "learning_rate": 1e-3, "envs": 16, "episode_length": 10.0,
+            "actor_start": "centre"}
 """SB3's best settings on the paper's benchmark (searched: discounts 0.95 and 0.99, learning
 rates 3e-4 to 3e-3, 16 and 64 scenarios, 10 and 40 s training episodes, minibatches of 128 and
 512; batch 512 is the grid's default)."""
@@ -90,6 +93,7 @@ class Setting(NamedTuple):
     critic_action: str
     episode_length: float
     batch_size: int
+    actor_start: str
 
 
 def _teleopkit(setting: Setting, rounds: int, target: float,
@@ -103,6 +107,7 @@ def _teleopkit(setting: Setting, rounds: int, target: float,
                        episode_length=setting.episode_length,
                        validation_length=config.episode_length, n_step=setting.n_step,
                        buffer_size=max(recipe.buffer_size, 2 * per_round),
+                       actor_start=setting.actor_start,
                        td3=replace(recipe.td3, discount=setting.discount, actor_lr=rate,
                                    critic_lr=rate, critic_action=setting.critic_action,
                                    batch_size=setting.batch_size))
@@ -145,6 +150,8 @@ def _sb3(setting: Setting, rounds: int, target: float,
                 action_noise=NormalActionNoise(np.zeros(4), RECIPE.td3.exploration_std / half),
                 policy_kwargs={"net_arch": {"pi": [128, 64], "qf": [128, 64, 60, 36]}},
                 seed=setting.seed, device="cpu", verbose=0)
+    if setting.actor_start == "best static":
+        _start_at(model, best_static_gains(config=config).gains, env.low, env.high)
     seconds = {"update": 0.0, "validation": 0.0}
     learn = model.train
 
@@ -170,6 +177,20 @@ def _sb3(setting: Setting, rounds: int, target: float,
 
     model.learn(total_timesteps=rounds * per_round, callback=Validate())
     return found
+
+
+def _start_at(model: Any, gains: np.ndarray, low: np.ndarray, high: np.ndarray) -> None:
+    """Offset the last bias of SB3's actor (and its target) so that it plays ``gains``.
+
+    As teleopkit's tanh actor starts (:class:`~teleopkit.rl.networks.Actor`): the output
+    ``tanh(z)`` rescaled onto the box, ``z`` shifted by ``artanh`` of the gains' place in it,
+    1 % of the range inside an edge.
+    """
+    margin = 0.01 * (high - low)
+    place = (np.clip(gains, low + margin, high - margin) - (low + high) / 2) / ((high - low) / 2)
+    with torch.no_grad():
+        model.actor.mu[-2].bias.add_(torch.as_tensor(np.arctanh(place), dtype=torch.float32))
+    model.actor_target.load_state_dict(model.actor.state_dict())
 
 
 class _SB3View(VecEnv):
@@ -274,6 +295,10 @@ def main() -> None:
     parser.add_argument("--critic-actions", nargs="+", default=None, choices=["applied", "raw"],
                         help="what teleopkit's critics value (TD3Config.critic_action) "
                              "[default: the recipe's]")
+    parser.add_argument("--starts", nargs="+", default=None, choices=list(ACTOR_STARTS),
+                        help="where both trainers' actors start: the box's centre, or the best "
+                             "constant gains of the covering class, their search timed "
+                             "[default: the recipe's; SB3: centre]")
     parser.add_argument("--setup", default="paper", help="a shipped setup name or a file")
     parser.add_argument("--observation", default="paper", choices=["paper", "adaptive"])
     parser.add_argument("--below", type=float, default=0.1,
@@ -296,10 +321,10 @@ def main() -> None:
     certificate = default_certificate(setup.params, setup.network.reached_bounds, COVERING_CLASS)
     config = FlexTeleopConfig(setup, certificate, observation=args.observation)
     trainers = {"teleopkit": _teleopkit, "sb3": _sb3}
-    print("\n| trainer | envs | episode [s] | n-step | critic values | discount | learning rate "
-          "| batch | seed | round | validation cost | time to it [s] | simulation | projection "
-          "| updates | validation |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n| trainer | start | envs | episode [s] | n-step | critic values | discount "
+          "| learning rate | batch | seed | round | validation cost | time to it [s] | simulation "
+          "| projection | updates | validation |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.which:
         for setting in _grid(args, name):
             found = trainers[name](setting, args.rounds, target, config)
@@ -307,7 +332,8 @@ def main() -> None:
                     f" (not within {args.rounds} rounds; best {found['best']:.0f})")
             split = " | ".join(f"{found[part]:.0f}" for part in SPLIT)
             label = f"{setting.trainer} {setting.recipe}".rstrip()
-            print(f"| {label} | {setting.envs} | {setting.episode_length:g} | "
+            print(f"| {label} | {setting.actor_start} | {setting.envs} | "
+                  f"{setting.episode_length:g} | "
                   f"{setting.n_step} | {setting.critic_action} | {setting.discount:g} | "
                   f"{setting.learning_rate:g} | {setting.batch_size} | {setting.seed} | "
                   f"{found['round']:.0f} | "
@@ -322,22 +348,24 @@ def _grid(args: argparse.Namespace, name: str) -> list[Setting]:
     """
     if name == "sb3":
         return _settings(args, "sb3", "", SB3_BEST["discount"], SB3_BEST["learning_rate"],
-                         SB3_BEST["envs"], 1, "raw", SB3_BEST["episode_length"])
+                         SB3_BEST["envs"], 1, "raw", SB3_BEST["episode_length"],
+                         SB3_BEST["actor_start"])
     grid = []
     for recipe_name in args.recipes:
         recipe = RECIPES[recipe_name]
         grid += _settings(args, "teleopkit", recipe_name, recipe.td3.discount,
                           recipe.td3.actor_lr, recipe.num_envs, recipe.n_step,
-                          recipe.td3.critic_action, recipe.episode_length)
+                          recipe.td3.critic_action, recipe.episode_length, recipe.actor_start)
     return grid
 
 
 def _settings(args: argparse.Namespace, trainer: str, recipe: str, discount: float, rate: float,
-              envs: int, n_step: int, valued: str, length: float) -> list[Setting]:
+              envs: int, n_step: int, valued: str, length: float, start: str) -> list[Setting]:
     """One trainer's settings: the command line's grid where given, else the values passed."""
     ours = trainer == "teleopkit"
     return [Setting(trainer, recipe, seed, gamma, lr, count, n, value,
-                    args.episode_length or length, batch)
+                    args.episode_length or length, batch, actor_start)
+            for actor_start in args.starts or [start]
             for count in args.envs or [envs]
             for n in (args.n_steps or [n_step] if ours else [1])
             for value in (args.critic_actions or [valued] if ours else ["raw"])

@@ -14,7 +14,10 @@ from typing import Any
 
 from teleopkit.rl.td3 import TD3Config
 
-__all__ = ["RECIPES", "TrainConfig"]
+__all__ = ["ACTOR_STARTS", "RECIPES", "TrainConfig"]
+
+ACTOR_STARTS = ("centre", "best static")
+"""Where the untrained actor starts (:attr:`TrainConfig.actor_start`)."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,14 @@ class TrainConfig:
         direction explored without spending it: per-step noise would spend the budget within a
         few steps) or at every step like the damping's (``"step"``). Without a scheduled class
         every gain explores per step.
+    actor_start : {"centre", "best static"}
+        Gains the untrained actor plays: the centre of the box (the paper's), or the best
+        constant gains of the class for the setup (:func:`~teleopkit.rl.baselines.best_static_gains`
+        on the task's episodes, searched before the first round: about half a minute on the
+        paper's setup). From the best constant gains training refines the strongest constant
+        comparator instead of first finding its way to it; the gains are recorded in the
+        policy's metadata (``start_gains``). Not with ``td3.start`` (which gives the gains
+        themselves).
     n_step : int
         Steps each stored transition spans (:class:`~teleopkit.rl.replay.NStepWindow`; 1: the
         paper's one-step transitions).
@@ -80,6 +91,7 @@ class TrainConfig:
     learning_starts: int = 64_000
     updates_per_step: int = 1
     stiffness_exploration: str = "episode"
+    actor_start: str = "centre"
     n_step: int = 1
     buffer_size: int = 1_000_000
     checkpoint_every: int = 1
@@ -96,6 +108,12 @@ class TrainConfig:
         if self.stiffness_exploration not in ("episode", "step"):
             raise ValueError("stiffness_exploration must be 'episode' or 'step', got "
                              f"{self.stiffness_exploration!r}")
+        if self.actor_start not in ACTOR_STARTS:
+            raise ValueError(f"actor_start must be one of {', '.join(map(repr, ACTOR_STARTS))}, "
+                             f"got {self.actor_start!r}")
+        if self.actor_start != "centre" and self.td3.start is not None:
+            raise ValueError(f"actor_start {self.actor_start!r} searches the start gains; "
+                             "td3.start gives them: set one of the two")
         if self.learning_starts < self.num_envs:
             raise ValueError(f"learning_starts must be at least num_envs ({self.num_envs}), "
                              f"got {self.learning_starts}")

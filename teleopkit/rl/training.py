@@ -25,7 +25,8 @@ round, episode_return, critic_loss, actor_loss, exploration_std, validation_cost
 unsafe_actions, simulation_time, projection_time, update_time, validation_time``; the episode
 return is that of the exploring policy, averaged over the sub-environments; ``unsafe_actions``
 counts applied actions outside the certified set, cumulatively, and must stay 0; ``wall_time`` is
-cumulative, the four last split the round's time: the simulator's periods, the safety layer, the
+cumulative (from the search of the actor's start, with ``actor_start="best static"``), the four
+last split the round's time: the simulator's periods, the safety layer, the
 TD3 updates and the validation), ``policy.npz`` (the last actor as a
 :class:`~teleopkit.rl.td3.GainPolicy`), ``best_policy.npz`` (the best by validation) and
 ``config.json``. Each is written to a temporary file in the same directory and moved into place
@@ -124,7 +125,8 @@ class TrainResult:
 class _Run:
     """One training run: environment, agent, buffer, generators and counters."""
 
-    def __init__(self, config: TrainConfig, env_config: FlexTeleopConfig | None) -> None:
+    def __init__(self, config: TrainConfig, env_config: FlexTeleopConfig | None,
+                 search_start: bool = True, progress: bool = False) -> None:
         self.config = config
         env_config = replace(env_config or FlexTeleopConfig(),
                              episode_length=config.episode_length)
@@ -135,18 +137,38 @@ class _Run:
         agent_seed, buffer_seed, explore_seed, env_seed = np.random.SeedSequence(
             config.seed).generate_state(4)
         self.env_seed = int(env_seed)
-        self.agent = TD3.for_env(self.env, config.td3, seed=int(agent_seed))
         space = self.env.single_action_space
         assert isinstance(space, Box)
         self.low, self.high = space.low, space.high
+        searching = time.perf_counter()
+        self.start_gains = self._start_gains(progress) if search_start else None
+        searched = time.perf_counter() - searching
+        td3 = (config.td3 if self.start_gains is None
+               else replace(config.td3, start=tuple(self.start_gains.tolist())))
+        self.agent = TD3.for_env(self.env, td3, seed=int(agent_seed))
         obs_dim = int(np.prod(self.env.single_observation_space.shape or (0,)))
         self.buffer = ReplayBuffer(config.buffer_size, obs_dim, len(self.low), int(buffer_seed))
         self.window = NStepWindow(config.n_step, config.td3.discount)
         self.explore = np.random.default_rng(explore_seed)
-        self.counters = _Counters()
+        self.counters = _Counters(wall_time=searched if self.start_gains is not None else 0.0)
         self.best_actor: dict[str, torch.Tensor] | None = None
         self.held_uniform: np.ndarray | None = None
         self.held_noise: np.ndarray | None = None
+
+    def _start_gains(self, progress: bool) -> np.ndarray | None:
+        """The gains the actor starts from, when searched (``actor_start="best static"``).
+
+        The best constant gains of the training class, searched on the task's episodes, moved
+        1 % of the box's range inside it where they lie on its edge (the output maps reach the
+        edges only in the limit).
+        """
+        if self.config.actor_start == "centre":
+            return None
+        from teleopkit.rl.baselines import best_static_gains
+
+        gains = best_static_gains(config=self.validation_config, progress=progress).gains
+        margin = 0.01 * (self.high - self.low)
+        return np.clip(gains, self.low + margin, self.high - margin)
 
     def fingerprint(self) -> dict[str, Any]:
         """Everything that determines the results (compared on resume)."""
@@ -169,11 +191,13 @@ class _Run:
                 "explore_rng": self.explore.bit_generator.state,
                 "env_rng": self.env.np_random.bit_generator.state,
                 "torch_rng": torch.get_rng_state(), "counters": asdict(self.counters),
-                "best_actor": self.best_actor}
+                "best_actor": self.best_actor,
+                "start_gains": None if self.start_gains is None else self.start_gains.tolist()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a checkpoint written by the same configuration."""
-        recorded, current = state.get("fingerprint") or {}, self.fingerprint()
+        current = self.fingerprint()
+        recorded = _at_defaults(state.get("fingerprint") or {})
         names = [key for key in dict.fromkeys([*recorded, *current])
                  if recorded.get(key) != current.get(key)]
         if names:
@@ -190,6 +214,8 @@ class _Run:
         torch.set_rng_state(state["torch_rng"])
         self.counters = _Counters(**state["counters"])
         self.best_actor = state["best_actor"]
+        start = state.get("start_gains")
+        self.start_gains = None if start is None else np.asarray(start, dtype=float)
 
     def _actions(self, obs: np.ndarray) -> np.ndarray:
         """Raw gains: uniform in the box while warming up, else actor plus noise.
@@ -327,7 +353,8 @@ class _Run:
 
     def _metadata(self) -> dict[str, Any]:
         """Training settings, the certificate (evaluation reads it) and the setup trained on."""
-        return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds,
+        start = {} if self.start_gains is None else {"start_gains": self.start_gains.tolist()}
+        return {"train_config": self.config.to_dict(), "rounds": self.counters.rounds, **start,
                 "gain_variation": self.env.certificate.gain_variation,
                 "certificate": self.env.certificate.to_dict(),
                 "setup": self.env.config.setup.record,
@@ -354,6 +381,19 @@ class _Run:
                    "exploration_std", "validation_cost", "wall_time", "unsafe_actions",
                    "simulation_time", "projection_time", "update_time", "validation_time"]
         return pd.DataFrame(self.counters.log, columns=columns)
+
+
+def _at_defaults(recorded: dict[str, Any]) -> dict[str, Any]:
+    """A settings fingerprint with the settings it predates at their defaults.
+
+    A setting added to :class:`TrainConfig` or :class:`~teleopkit.rl.td3.TD3Config` after a
+    checkpoint was written is missing from its fingerprint; the run had the setting's default
+    (the behaviour before the setting existed), so it resumes under that value.
+    """
+    defaults = json.loads(json.dumps(TrainConfig().to_dict()))
+    filled = {**{k: v for k, v in defaults.items() if k not in _RESULT_NEUTRAL}, **recorded}
+    filled["td3"] = {**defaults["td3"], **recorded.get("td3", {})}
+    return filled
 
 
 def _short(value: Any) -> str:
@@ -440,8 +480,9 @@ def train(config: TrainConfig, out_dir: str | Path | None = None, resume: bool =
     """
     from tqdm import tqdm
 
-    run = _Run(config, env_config)
     directory = Path(out_dir) if out_dir is not None else None
+    resuming = resume and directory is not None and (directory / CHECKPOINT).exists()
+    run = _Run(config, env_config, search_start=not resuming, progress=progress)
     with contextlib.ExitStack() as held:
         if directory is not None:
             directory.mkdir(parents=True, exist_ok=True)

@@ -220,7 +220,10 @@ def test_a_checkpoint_without_a_later_setting_resumes_at_its_default(tmp_path):
     """A fingerprint written before a setting existed matches that setting's default."""
     train(replace(TINY, total_steps=80), tmp_path, progress=False)
     state = load_checkpoint(tmp_path / CHECKPOINT)
-    assert state["fingerprint"].pop("validation_length") is None
+    fingerprint = state["fingerprint"]
+    assert fingerprint.pop("validation_length") is None
+    assert fingerprint.pop("actor_start") == "centre"
+    assert fingerprint["td3"].pop("output_map") == "softplus"
     torch.save(state, tmp_path / CHECKPOINT)
     resumed = train(replace(TINY, total_steps=120), tmp_path, resume=True, progress=False)
     assert int(resumed.log["step"].iloc[-1]) == 120
@@ -294,3 +297,69 @@ def test_stiffness_exploration_is_held_per_episode_or_drawn_per_step(warm):
 def test_stiffness_exploration_must_be_named():
     with pytest.raises(ValueError, match="stiffness_exploration must be 'episode' or 'step'"):
         replace(TINY, stiffness_exploration="round")
+
+
+STARTED = replace(TINY, actor_start="best static")
+
+
+@pytest.fixture(scope="module")
+def best_static_tiny():
+    """The best constant gains of the tiny problem's class on its episodes."""
+    from teleopkit.rl.baselines import best_static_gains
+
+    return best_static_gains(config=FlexTeleopConfig(episode_length=TINY.episode_length)).gains
+
+
+def test_the_actor_can_start_from_the_best_constant_gains(best_static_tiny):
+    """Before any update the actor plays the searched gains (softplus: its small last layer);
+    the policy records them."""
+    untrained = train(replace(STARTED, total_steps=40, learning_starts=40), progress=False)
+    centre = train(replace(TINY, total_steps=40, learning_starts=40), progress=False)
+    env_config = FlexTeleopConfig(episode_length=TINY.episode_length)
+    obs, _ = FlexTeleopVectorEnv(5, env_config).reset(seed=0)
+    # a gain on the box's edge starts 1 % of the range inside it
+    low, high = np.array([1.0, 1.0, 1.0, 1.0]), np.array([50.0, 50.0, 150.0, 150.0])
+    start = np.clip(best_static_tiny, low + 0.01 * (high - low), high - 0.01 * (high - low))
+    gains = untrained.policy(obs)
+    np.testing.assert_allclose(gains, np.broadcast_to(start, gains.shape), rtol=0.05)
+    assert not np.allclose(centre.policy(obs), gains, rtol=0.05)
+    np.testing.assert_array_equal(untrained.policy.metadata["start_gains"], start)
+    assert "start_gains" not in centre.policy.metadata
+
+
+def test_a_started_run_resumes_without_searching_again(tmp_path, monkeypatch):
+    straight = train(STARTED, tmp_path / "straight", progress=False)
+    train(replace(STARTED, total_steps=STARTED.total_steps // 2), tmp_path / "split",
+          progress=False)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a resumed run searched its start again")
+
+    monkeypatch.setattr("teleopkit.rl.baselines.best_static_gains", refuse)
+    resumed = train(STARTED, tmp_path / "split", resume=True, progress=False)
+    assert torch.equal(flat(straight.agent), flat(resumed.agent))
+    assert resumed.policy.metadata["start_gains"] == straight.policy.metadata["start_gains"]
+    assert resumed.best_policy.metadata["start_gains"] == resumed.policy.metadata["start_gains"]
+
+
+def test_start_gains_on_the_box_edge_move_inside_it(monkeypatch):
+    from teleopkit.rl.baselines import StaticGains
+
+    corner = np.array([1.0, 50.0, 1.0, 150.0])  # the default box's edges
+
+    def on_the_edges(*args, **kwargs):
+        return StaticGains(corner, 0.0, corner, 0.0, 1)
+
+    monkeypatch.setattr("teleopkit.rl.baselines.best_static_gains", on_the_edges)
+    run = _Run(replace(STARTED, td3=TD3Config(output_map="tanh")), None)
+    np.testing.assert_allclose(run.start_gains, [1.49, 49.51, 2.49, 148.51])
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"actor_start": "static"}, "actor_start must be one of 'centre', 'best static'"),
+    ({"actor_start": "best static", "td3": TD3Config(start=(4.0, 4.0, 10.0, 18.0))},
+     "set one of the two"),
+])
+def test_an_unknown_or_doubly_given_start_is_refused(change, message):
+    with pytest.raises(ValueError, match=message):
+        replace(TINY, **change)
