@@ -63,7 +63,10 @@ pd.DataFrame({"t": t, "delay_ms": 300 + 240 * np.cos(0.37 * t)}).to_csv(folder /
 # The setup file
 # --------------
 # ``teleopkit setup`` prints the paper's setup file, to copy and edit; ``teleopkit setup FILE``
-# checks a file and says what it describes. Keys left out take the paper's values. Each
+# checks a file and says what it describes. Only ``plant`` and its ``local_arm`` are required,
+# with the arm's ``lengths`` and ``masses`` (``com`` and ``inertia`` are optional: point masses
+# at the link tips by default); a ``remote_arm`` left out is a copy of the local arm, and every
+# other key left out takes the paper's value (per joint of the arm). Each
 # direction of the network has a range ``[min, max]``, which certificates must cover, and a
 # profile (any delay spec, a CSV trace, or a list of them drawn per scenario); every profile is
 # checked against its range. A mistake is reported in one line naming the key path, for example

@@ -82,10 +82,10 @@ class GainVariation:
             raise ValueError(f"only a tank takes a unit (tank:0.5rad), got {self.kind} with "
                              f"{self.unit!r}")
         if self.kind == "tank":
-            value = 0.0 if math.isnan(value) else value
             if self.unit == "rad" and not (math.isfinite(value) and value > 0):
                 raise ValueError(f"gain variation tank:Drad needs a positive finite deflection, "
                                  f"got {value:g} rad")
+            value = 0.0 if math.isnan(value) else value  # no number: an empty tank
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"gain variation tank:T0 needs a finite initial level T0 >= 0, "
                                  f"got {value:g}")
@@ -146,7 +146,7 @@ class GainVariation:
 
 
 def parse_gain_variation(text: str) -> GainVariation:
-    """Parse ``frozen``, ``switching``, ``rate:R``, ``scheduled:L`` or ``tank[:T0]``.
+    """Parse ``frozen``, ``switching``, ``rate:R``, ``scheduled:L`` or ``tank[:T0 or :Drad]``.
 
     Parameters
     ----------
@@ -161,7 +161,7 @@ def parse_gain_variation(text: str) -> GainVariation:
     Raises
     ------
     ValueError
-        One line naming the bad class or number.
+        One line naming the bad class or number (NaN included), quoting the text given.
     """
     kind, colon, number = str(text).strip().partition(":")
     if kind not in KINDS:
@@ -176,5 +176,7 @@ def parse_gain_variation(text: str) -> GainVariation:
     try:
         value = float(number.strip().removesuffix("rad") if unit else number)
     except ValueError:
-        raise ValueError(f"gain variation {kind}: {number!r} is not a number") from None
+        value = math.nan
+    if math.isnan(value):  # NaN too: it would read as "no number" (an empty tank)
+        raise ValueError(f"gain variation {text!r}: {number!r} is not a number")
     return GainVariation(kind, value, unit)

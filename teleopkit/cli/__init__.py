@@ -1,7 +1,8 @@
 """The ``teleopkit`` command line.
 
 Exit codes: 0 success (or certified), 1 ran but the answer is negative (not certified, unsafe
-actions, a falsification finding) or the model failed (a run left the state bound: one line),
+actions, a falsification finding, a simulated run that diverged) or the model failed (a run
+left the state bound: one line),
 2 bad input with a one-line message on standard error and no
 traceback, 130 interrupted (Ctrl-C), with one line. Each subcommand imports what it needs when it
 runs, so ``teleopkit --help`` starts at once; :mod:`~teleopkit.cli.options` holds what they share.

@@ -8,24 +8,25 @@ from typing import TYPE_CHECKING
 
 import click
 
-from teleopkit.cli.options import gain_variation, progress, setup_option
+from teleopkit.cli.options import FiniteFloat, gain_variation, progress, setup_option
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
     from teleopkit.setup import Setup
+    from teleopkit.setup.network import Channel
 
 __all__ = ["certify"]
 
-_BOUND = click.FloatRange(min=0, min_open=True, max=1e6)
-_FLOOR = click.FloatRange(min=0, max=1e6)
+_BOUND = FiniteFloat(min=0, min_open=True, max=1e6)
+_FLOOR = FiniteFloat(min=0, max=1e6)
 
 
 @click.command()
 @click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
 @click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
-@click.option("--kl", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--kl", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Local gain K_l of every joint [default: the setup's].")
-@click.option("--bl", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--bl", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Local damping B_l of every joint [default: the setup's].")
 @click.option("--tl-max", type=_BOUND, default=None,
               help="Forward delay bound T_l* [s] [default: the setup's network.forward.max, "
@@ -46,8 +47,10 @@ _FLOOR = click.FloatRange(min=0, max=1e6)
                    "method that covers the class, the best answer first.")
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
               callback=gain_variation,
-              help="frozen | switching | rate:R | scheduled:L | tank[:T0] (R in gain units per "
-                   "second, L a log budget per episode, T0 an initial tank level).")
+              help="frozen | switching | rate:R | scheduled:L | tank[:T0 or :Drad] (R in gain "
+                   "units per second, L a log budget per episode, T0 an initial tank level in "
+                   "rad^2, D the spring deflection in rad the tank's bound allows, e.g. "
+                   "tank:0.5rad; tank alone starts empty).")
 @click.option("--json", "as_json", is_flag=True, help="Print the certificate as JSON.")
 @click.option("--cache/--no-cache", default=True, show_default=True,
               help="Reuse an LMI certificate of the same question from $TELEOPKIT_CACHE (else "
@@ -75,14 +78,8 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
     from teleopkit.certification.verification import cover_plants
     from teleopkit.model.params import PDGains
 
-    tl_max = setup.network.forward.max if tl_max is None else tl_max
-    tr_max = setup.network.backward.max if tr_max is None else tr_max
-    tl_min = setup.network.forward.min if tl_min is None else tl_min
-    tr_min = setup.network.backward.min if tr_min is None else tr_min
-    for option, low, high in (("--tl-min", tl_min, tl_max), ("--tr-min", tr_min, tr_max)):
-        if not low < high:  # NaN included
-            raise click.BadParameter(f"{low:g} s is not a delay below the upper bound {high:g} s",
-                                     param_hint=f"'{option}'")
+    tl_min, tl_max = _delay_range("l", tl_min, tl_max, setup.network.forward)
+    tr_min, tr_max = _delay_range("r", tr_min, tr_max, setup.network.backward)
     n = setup.n_joints
     plants = [replace(plant, local_gains=PDGains(
         plant.local_gains.stiffness if kl is None else (kl,) * n,
@@ -125,6 +122,22 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
     best = best_certificate(results)
     _answer(results, as_json, setup)
     return 0 if best.certified else 1
+
+
+def _delay_range(side: str, low: float | None, high: float | None,
+                 channel: Channel) -> tuple[float, float]:
+    """A direction's minimum delay and bound, the setup's where not given; refused unless below.
+
+    The message blames the option given (``--t{side}-min`` first), or the setup when neither was.
+    """
+    floor = channel.min if low is None else low
+    bound = channel.max if high is None else high
+    if not floor < bound:
+        option = (f"--t{side}-min" if low is not None else f"--t{side}-max" if high is not None
+                  else "--setup")
+        raise click.BadParameter(f"the minimum delay T_{side}_min = {floor:g} s is not below the "
+                                 f"bound T_{side}* = {bound:g} s", param_hint=f"'{option}'")
+    return floor, bound
 
 
 def _indented(text: str) -> str:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import click
 
 from teleopkit.cli.options import (
+    FiniteFloat,
     certificate_option,
     check_output_dir,
     gain_variation,
@@ -16,6 +17,8 @@ from teleopkit.cli.options import (
 )
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from teleopkit.certification.gain_certificate import GainCertificate
     from teleopkit.setup import Setup
 
@@ -29,7 +32,7 @@ __all__ = ["search_law_command"]
               help="Laws per generation.")
 @click.option("--scenarios", type=click.IntRange(min=1), default=64, show_default=True,
               help="Fresh scenarios per generation, shared by the laws and the start gains.")
-@click.option("--harm", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--harm", type=FiniteFloat(min=0), default=1.0, show_default=True,
               help="Weight of the mean excess cost over the start gains (0: the mean relative "
                    "cost alone).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
@@ -52,7 +55,9 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
     layer, starting from the best constant gains of the class for the setup (searched first,
     about a minute); CMA-ES then runs every generation's laws and the start gains on the same
     fresh scenarios of the setup (teleopkit.rl.law_search). Every gain is projected by the
-    safety layer; the result is a policy file that evaluate runs like any tuner.
+    safety layer; the result is a policy file that evaluate runs like any tuner. The start
+    gains (the law with zero weights) are a candidate too: when no law beats them on the
+    validation scenarios, they are what is saved, and a warning says so.
     """
     from teleopkit.rl.env import FlexTeleopConfig
     from teleopkit.rl.law_search import LawSearchConfig, law_start, search_gain_law
@@ -68,12 +73,39 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
     click.echo("start: the best constant gains of the class "
                f"{[round(float(g), 4) for g in start]}", err=True)
     result = search_gain_law(start, settings, config, out_dir=out, progress=None)
-    best = result.log.loc[result.log["validation_objective"].idxmin()]
-    click.echo(f"best law at generation {int(best['generation'])}: validation cost "
-               f"{best['validation_cost']:.5g} against {best['start_cost']:.5g} for the start "
-               f"gains (objective {100 * (best['validation_objective'] - 1):+.1f} %: the cost "
-               "relative to theirs per scenario, plus the excess where dearer); law in "
-               f"{out / 'best_policy.npz'}")
+    _report(result.log, out / "best_policy.npz")
+
+
+def _report(log: pd.DataFrame, saved: Path) -> None:
+    """The law kept, against the start gains; a warning line when no law beat them."""
+    laws = log[log["generation"] > 0]
+    found = laws.loc[laws["validation_objective"].idxmin()]
+    kept = log.loc[log["validation_objective"].idxmin()]
+    if kept["generation"] == 0:
+        click.echo("warning: no law found beat the start gains on the validation scenarios "
+                   f"(the best, at generation {int(found['generation'])}: objective "
+                   f"{_percent(found)}, validation cost {found['validation_cost']:.5g} against "
+                   f"{found['start_cost']:.5g}); {saved} holds the start gains themselves (the "
+                   "law with zero weights)", err=True)
+    elif kept["validation_cost"] > kept["start_cost"]:
+        click.echo("warning: the law kept costs more on the validation scenarios than the start "
+                   f"gains on average ({kept['validation_cost']:.5g} against "
+                   f"{kept['start_cost']:.5g}) though less relative to them per scenario (the "
+                   "search's objective): it wins the cheap scenarios and loses the dear ones",
+                   err=True)
+    if kept["generation"] == 0:
+        click.echo(f"kept the start gains (generation 0): validation cost "
+                   f"{kept['validation_cost']:.5g}; law in {saved}")
+        return
+    click.echo(f"best law at generation {int(kept['generation'])}: validation cost "
+               f"{kept['validation_cost']:.5g} against {kept['start_cost']:.5g} for the start "
+               f"gains (objective {_percent(kept)}: the cost relative to theirs per scenario, "
+               f"plus the excess where dearer); law in {saved}")
+
+
+def _percent(row: pd.Series) -> str:
+    """A log row's validation objective as a change in percent (0 % for the start gains)."""
+    return f"{100 * (row['validation_objective'] - 1):+.1f} %"
 
 
 def _law_certificate(variation: object, certificate: Path | None,

@@ -24,10 +24,10 @@ if TYPE_CHECKING:
     from teleopkit.certification.gain_classes import GainVariation
     from teleopkit.setup import Setup
 
-__all__ = ["IMAGE_SUFFIXES", "certificate_option", "check_disk", "check_output",
-           "check_output_dir", "delay_spec", "gain_variation", "gains",
-           "progress", "read_certificate", "read_setup", "require_torch", "setup_option",
-           "single_thread"]
+__all__ = ["IMAGE_SUFFIXES", "FiniteFloat", "certificate_option", "check_disk", "check_output",
+           "check_output_dir", "delay_spec", "gain_variation", "gains", "load_setup",
+           "progress", "read_certificate", "read_setup", "require_torch", "run_duration",
+           "setup_option", "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
@@ -35,6 +35,69 @@ IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".ep
 
 def _bad(option: str, message: str) -> click.BadParameter:
     return click.BadParameter(message, param_hint=f"'{option}'")
+
+
+class FiniteFloat(click.FloatRange):
+    """A :class:`click.FloatRange` that refuses NaN and infinities, which a range lets through.
+
+    Parameters
+    ----------
+    min, max : float, optional
+        The bounds, as for :class:`click.FloatRange`.
+    min_open, max_open : bool
+        Whether a bound is excluded.
+    """
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        """The number, refused in one line when it is not finite or not in the range.
+
+        Parameters
+        ----------
+        value : object
+            The text given (or a default number).
+        param : click.Parameter or None
+            The option, for the message.
+        ctx : click.Context or None
+            Click's context.
+
+        Returns
+        -------
+        float
+            The number.
+        """
+        number = click.FLOAT.convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value} is not a finite number", param, ctx)
+        return super().convert(number, param, ctx)
+
+
+def run_duration(ctx: click.Context | None, param: click.Parameter | None, value: float) -> float:
+    """Option callback of ``--duration``: seconds, a whole number of control periods.
+
+    Parameters
+    ----------
+    ctx : click.Context or None
+        Unused.
+    param : click.Parameter or None
+        Unused (the option is ``--duration``).
+    value : float
+        The seconds given.
+
+    Returns
+    -------
+    float
+        ``value``, refused (one line) unless positive, finite and a whole number of the
+        10 ms control periods every run holds its gains over
+        (:func:`~teleopkit.sim.timing.periods`).
+    """
+    from teleopkit.sim.timing import CONTROL_PERIOD, periods
+
+    try:
+        periods(value, CONTROL_PERIOD)
+    except ValueError as error:
+        raise _bad("--duration", str(error)) from None
+    return value
 
 
 def gains(ctx: click.Context | None, param: click.Parameter | None, value: str) -> list[float]:
@@ -278,6 +341,25 @@ def read_setup(ctx: click.Context | None, param: click.Parameter | None,
     Setup
         The setup; an unreadable or malformed file is one line naming the key path.
     """
+    return load_setup(value, "--setup")
+
+
+def load_setup(value: Path | None, option: str) -> Setup:
+    """The setup a file or a shipped setup's name describes, the paper's for None.
+
+    Parameters
+    ----------
+    value : Path, optional
+        A setup file (YAML or JSON), or the name of a shipped setup.
+    option : str
+        The option or argument that gave it (``--setup``, ``FILE``), for the message.
+
+    Returns
+    -------
+    Setup
+        The setup; an unreadable or malformed file is one line naming ``option`` and the key
+        path.
+    """
     from teleopkit.setup import SHIPPED_SETUPS, Setup, SetupError, shipped_setup_path
 
     if value is None:
@@ -285,12 +367,12 @@ def read_setup(ctx: click.Context | None, param: click.Parameter | None,
     if str(value) in SHIPPED_SETUPS:
         value = shipped_setup_path(str(value))
     elif not Path(value).exists() and Path(value).name == str(value) and not Path(value).suffix:
-        raise _bad("--setup", f"{value} is neither a setup file nor a shipped setup "
-                              f"({', '.join(SHIPPED_SETUPS)})")
+        raise _bad(option, f"{value} is neither a setup file nor a shipped setup "
+                           f"({', '.join(SHIPPED_SETUPS)})")
     try:
         return Setup.from_file(value)
     except SetupError as error:
-        raise _bad("--setup", str(error)) from None
+        raise _bad(option, str(error)) from None
 
 
 def setup_option(function: Any) -> Any:

@@ -8,7 +8,13 @@ from typing import TYPE_CHECKING
 
 import click
 
-from teleopkit.cli.options import check_output, gain_variation, setup_option
+from teleopkit.cli.options import (
+    FiniteFloat,
+    check_output,
+    gain_variation,
+    run_duration,
+    setup_option,
+)
 
 if TYPE_CHECKING:
     from teleopkit.setup import Setup
@@ -100,9 +106,9 @@ def campaign_command(ctx: click.Context, spec: Path, out: Path, workers: int | N
 @click.command("falsify")
 @click.option("--kr", "kr_range", required=True, help="Range of K_r, MIN:MAX (every joint).")
 @click.option("--br", "br_range", required=True, help="Range of B_r, MIN:MAX (every joint).")
-@click.option("--tl-max", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--tl-max", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Forward delay bound T_l* [s] [default: the setup's network.forward.max].")
-@click.option("--tr-max", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--tr-max", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Backward delay bound T_r* [s] [default: the setup's "
                    "network.backward.max].")
 @click.option("--method", type=click.Choice(["nuno", "lmi"]), default="nuno", show_default=True,
@@ -110,7 +116,7 @@ def campaign_command(ctx: click.Context, spec: Path, out: Path, workers: int | N
 @click.option("--gain-variation", "variation", default="frozen", show_default=True,
               callback=gain_variation,
               help="Gain class of the certificate: frozen | switching | rate:R | scheduled:L | "
-                   "tank[:T0].")
+                   "tank[:T0 or :Drad].")
 @click.option("--switch-gains/--certified-gains", "switch_gains", default=None,
               help="Let the adversary switch gains even if the certificate covers frozen gains "
                    "only (a probe outside the certificate) [default: as the certificate].")
@@ -126,8 +132,8 @@ def campaign_command(ctx: click.Context, spec: Path, out: Path, workers: int | N
               help="Runs to simulate (whole populations).")
 @click.option("--population", type=click.IntRange(min=2), default=16, show_default=True,
               help="Runs per generation (one simulator batch).")
-@click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=20.0,
-              show_default=True, help="Seconds per run.")
+@click.option("--duration", type=float, default=20.0, show_default=True, callback=run_duration,
+              help="Seconds per run (a whole number of 10 ms control periods).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the search.")
 @click.option("--out", type=click.Path(path_type=Path), default=None,

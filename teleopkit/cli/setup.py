@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from teleopkit.cli.options import read_setup
+from teleopkit.cli.options import load_setup
 
 __all__ = ["setup_command"]
 
@@ -25,7 +25,7 @@ def setup_command(file: Path | None) -> None:
     if file is None:
         click.echo(paper_setup_path().read_text(encoding="utf-8"), nl=False)
         return
-    setup = read_setup(None, None, file)
+    setup = load_setup(file, "FILE")
     click.echo(f"{file} describes:")
     for line in setup.describe():
         click.echo(f"  {line}")

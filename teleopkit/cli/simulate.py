@@ -14,6 +14,7 @@ from teleopkit.cli.options import (
     check_output,
     delay_spec,
     gains,
+    run_duration,
     setup_option,
 )
 from teleopkit.model.params import PLANT_LABELS
@@ -23,6 +24,7 @@ from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
 if TYPE_CHECKING:
     from teleopkit.setup import Setup
+    from teleopkit.sim.trajectory import Trajectory
 
 __all__ = ["simulate_command"]
 
@@ -30,22 +32,12 @@ _CSV_ROW_BYTES = 27 * 22
 """About what one row of the run's CSV takes (27 columns of shortest round-trip floats)."""
 
 
-def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
-    from teleopkit.sim.timing import periods
-
-    try:
-        periods(value, CONTROL_PERIOD)
-    except ValueError as error:
-        raise click.BadParameter(str(error), param_hint="'--duration'") from None
-    return value
-
-
 @click.command("simulate")
 @click.option("--kr", required=True, callback=gains,
               help="Remote proportional gain K_r: one value or K1,K2.")
 @click.option("--br", required=True, callback=gains,
               help="Remote damping gain B_r: one value or B1,B2.")
-@click.option("--duration", type=float, default=40.0, show_default=True, callback=_periods,
+@click.option("--duration", type=float, default=40.0, show_default=True, callback=run_duration,
               help="Seconds (a whole number of 10 ms control periods).")
 @click.option("--delay", default=None, callback=delay_spec,
               help="paper | constant:T | sine:MEAN:AMP:FREQ | switching:LOW:HIGH:DWELL | "
@@ -63,13 +55,14 @@ def _periods(ctx: click.Context, param: click.Parameter, value: float) -> float:
               help=f"Figure file ({', '.join(IMAGE_SUFFIXES)}) of the run, paper style.")
 @setup_option
 def simulate_command(kr: list[float], br: list[float], duration: float, delay: str | None,
-                     seed: int, dt: float, out: Path, plot: Path | None, setup: Setup) -> None:
+                     seed: int, dt: float, out: Path, plot: Path | None, setup: Setup) -> int:
     """Simulate a setup's teleoperator (the paper's by default) with constant remote gains.
 
-    The run is written as CSV (and a figure with --plot).
+    The run is written as CSV (and a figure with --plot). Exit 1: the run diverged (its state
+    stopped being finite or a position passed 20 rad); its CSV is written, no figure.
     """
     from teleopkit.files import write_csv
-    from teleopkit.sim.simulator import simulate_trajectory
+    from teleopkit.sim.divergence import Divergence
 
     check_output(out, "--out", (".csv",))
     if plot is not None:
@@ -77,22 +70,52 @@ def simulate_command(kr: list[float], br: list[float], duration: float, delay: s
     check_disk(out, int(round(duration / CONTROL_PERIOD) + 1) * _CSV_ROW_BYTES, "--out")
     n = setup.n_joints
     action = np.array([*_per_joint(kr, n, "--kr"), *_per_joint(br, n, "--br")])
-    trajectory = simulate_trajectory(action, duration=duration, delay=delay, seed=seed, dt=dt,
-                                     setup=setup)
+    trajectory = _run(action, duration, delay, seed, dt, setup)
     write_csv(out, trajectory.columns())
+    diverged = Divergence().describe(trajectory.t, trajectory.state)
+    if diverged is not None:
+        click.echo(f"wrote {len(trajectory.t)} rows to {out}; {diverged}")
+        _warn_beyond_margin(setup, action, float(trajectory.delays.max()))
+        return 1
     if plot is not None:
         from teleopkit.plots import save_run_figure
 
-        spec = delay or ", ".join(setup.network.forward.profiles)
-        scaled = " (the paper's profile scaled by this seed's delay scales)" if spec == "paper" \
-            else ""
         save_run_figure(trajectory.to_frame(), plot,
-                        title=f"K_r = {kr}, B_r = {br}, delay {spec}{scaled}")
+                        title=f"K_r = {kr}, B_r = {br}, {_delay_title(setup, delay)}")
     e = trajectory.e_track[:, 0]
     rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
     click.echo(f"wrote {len(trajectory.t)} rows to {out}{_drawn_plant(setup, seed, delay)}; "
                f"RMS tracking error {rms:.4g} rad")
     _warn_beyond_margin(setup, action, float(trajectory.delays.max()))
+    return 0
+
+
+def _run(action: np.ndarray, duration: float, delay: str | None, seed: int, dt: float,
+         setup: Setup) -> Trajectory:
+    """The run, without the Python warning of a divergence (the command says it, exit 1)."""
+    import warnings
+
+    from teleopkit.sim.divergence import DivergenceWarning
+    from teleopkit.sim.simulator import simulate_trajectory
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DivergenceWarning)
+        return simulate_trajectory(action, duration=duration, delay=delay, seed=seed, dt=dt,
+                                   setup=setup)
+
+
+def _delay_title(setup: Setup, delay: str | None) -> str:
+    """The run's delays for a figure title: both directions, ``forward / backward`` if they differ.
+
+    ``delay`` (the option) drives both; else each direction is the setup's network's.
+    """
+    directions = [delay] * 2 if delay else [", ".join(channel.profiles) for channel in
+                                            (setup.network.forward, setup.network.backward)]
+    spec = directions[0] if directions[0] == directions[1] else " / ".join(directions)
+    words = "delay" if directions[0] == directions[1] else "delays (forward / backward)"
+    scaled = (" (the paper's profile scaled by this seed's delay scales)"
+              if "paper" in directions else "")
+    return f"{words} {spec}{scaled}"
 
 
 def _drawn_plant(setup: Setup, seed: int, delay: str | None) -> str:
@@ -115,8 +138,9 @@ def _per_joint(values: list[float], n: int, option: str) -> list[float]:
     if len(values) == 1:
         return values * n
     if len(values) != n:
-        raise click.BadParameter(f"needs 1 or {n} values (one per joint), got {len(values)}",
-                                 param_hint=f"'{option}'")
+        wanted = "1 value (the setup has one joint)" if n == 1 else \
+            f"1 or {n} values (one per joint)"
+        raise click.BadParameter(f"needs {wanted}, got {len(values)}", param_hint=f"'{option}'")
     return values
 
 

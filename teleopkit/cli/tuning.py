@@ -18,6 +18,7 @@ from teleopkit.cli.options import (
     gain_variation,
     read_certificate,
     require_torch,
+    run_duration,
     setup_option,
     single_thread,
 )
@@ -25,6 +26,7 @@ from teleopkit.cli.options import (
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
     from teleopkit.rl.env import FlexTeleopConfig
+    from teleopkit.rl.policy import GainPolicy
     from teleopkit.rl.recipes import TrainConfig
     from teleopkit.setup import Setup
 
@@ -241,7 +243,9 @@ class _PolicyFile(click.Path):
                    "trained under tank:3, whose certificate covers every schedule it plays), law "
                    "(the gain law searched for the mixed setup under tank:3) or paper (the "
                    "paper's tuner, trained under the frozen class); repeat for several "
-                   "training seeds of one recipe.")
+                   "training seeds of one recipe (one row), or for another tuner of a class "
+                   "the first policy's certificate covers (its own row, e.g. --policy covered "
+                   "--policy law).")
 @click.option("--scenarios", type=click.IntRange(min=1), default=32, show_default=True,
               help="Held-out scenarios.")
 @click.option("--seed", type=click.IntRange(min=0), default=7_777, show_default=True,
@@ -250,8 +254,8 @@ class _PolicyFile(click.Path):
               help="Delays of both channels in place of the setup's network: paper | "
                    "constant:T | sine:MEAN:AMP:FREQ | switching:LO:HI:DWELL | csv:PATH (shapes "
                    "training never saw).")
-@click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=40.0,
-              show_default=True, help="Episode length [s].")
+@click.option("--duration", type=float, default=40.0, show_default=True, callback=run_duration,
+              help="Episode length [s] (a whole number of 10 ms control periods).")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/evaluate",
               show_default=True, help="Directory for per_scenario.csv, summary.csv and summary.md.")
 @click.option("--certificate", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -264,7 +268,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                      setup: Setup) -> int:
     """Compare TD3 policies with the best static gains and the other comparators.
 
-    Every row runs on the same held-out scenarios drawn from the setup; the reference row
+    Every row runs on the same held-out scenarios drawn from the setup; policies of one kind
+    and observation share a row (training seeds), another tuner (a gain law beside a TD3 tuner)
+    has its own row, run with its own observation under the same certificate. The reference row
     "best static" is the best constant gains of the frozen class on the certificate's box,
     and the comparators of the policies' own class (best static gains, the tuned semi-active
     damping law, the tuner's open-loop mean schedule) are searched for this setup and
@@ -275,14 +281,12 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     """
     from teleopkit.rl.comparison import (
         REFERENCE,
-        check_covers,
         comparators_for,
         compare,
         evaluation_config,
-        policy_certificate,
         report_preamble,
         schedule_label,
-        tuner_label,
+        tuner_rows,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
     from teleopkit.rl.law_search import law_under
@@ -295,13 +299,8 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
             policies.append(GainPolicy.load(path))
         except ValueError as error:
             raise click.BadParameter(str(error), param_hint="'--policy'") from None
-    chosen = (read_certificate(certificate) if certificate is not None
-              else policy_certificate(policies[0]))
-    try:
-        for policy in policies:
-            check_covers(chosen, policy)
-    except ValueError as error:
-        raise click.BadParameter(str(error), param_hint="'--certificate'") from None
+    chosen = _evaluation_certificate([_policy_name(path) for path in policy_files], policies,
+                                     certificate)
     config = evaluation_config(chosen, setup, delay, duration)
     chosen = config.safety_certificate()  # extended to the setup's other plants
     _check_certificate(chosen, config)
@@ -316,17 +315,74 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     comparators = comparators_for(policies[0], chosen, config, on_search=searching)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
                            setup=setup)
-    tuner = tuner_label(policies[0], chosen.gain_variation)
+    rows = tuner_rows(policies, chosen.gain_variation)
+    tuner = next(iter(rows))
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles
                                               + config.setup.network.backward.profiles))
-    preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(policies),
-                               duration, setup=config.setup)
+    preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(rows[tuner]),
+                               duration, others=_other_tuners(rows, tuner), setup=config.setup)
     summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner,
                           schedule=schedule_label(chosen.gain_variation))
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")
     return 0 if unsafe == 0 else 1
+
+
+def _policy_name(path: Path) -> str:
+    """A policy as the user names it: a shipped policy's name, else its path."""
+    from teleopkit.rl.policy import SHIPPED_POLICIES, resolve_policy
+
+    return next((name for name in SHIPPED_POLICIES if resolve_policy(name) == path), str(path))
+
+
+def _evaluation_certificate(names: list[str], policies: list[GainPolicy],
+                            certificate: Path | None) -> GainCertificate:
+    """The one certificate every policy runs under: the file given, else the first policy's.
+
+    A policy whose class it does not cover is refused in one line that names the conflict:
+    the file given, or the two policies (by ``names``) and their classes, and what would do.
+    """
+    from teleopkit.rl.comparison import check_covers, policy_certificate
+
+    chosen = (read_certificate(certificate) if certificate is not None
+              else policy_certificate(policies[0]))
+    if certificate is None:
+        for name, policy in zip(names[1:], policies[1:], strict=True):
+            _refuse_other_class(names[0], chosen, name, policy_certificate(policy))
+    try:
+        for policy in policies:
+            check_covers(chosen, policy)
+    except ValueError as error:
+        hint = "--certificate" if certificate is not None else "--policy"
+        raise click.BadParameter(str(error), param_hint=f"'{hint}'") from None
+    return chosen
+
+
+def _refuse_other_class(first: str, chosen: GainCertificate, name: str,
+                        trained: GainCertificate) -> None:
+    """Refuse a policy of a class the first policy's certificate does not cover, naming both."""
+    if chosen.variation.covers(trained.variation):
+        return
+    way = (f"its class does not cover {trained.gain_variation}, which covers both: give "
+           f"--policy {name} first, or a --certificate of that class"
+           if trained.variation.covers(chosen.variation) else
+           "neither class covers the other, so evaluate them in separate runs")
+    raise click.BadParameter(
+        f"{first} was trained under {chosen.gain_variation} and {name} under "
+        f"{trained.gain_variation}, and every policy runs under one certificate (the first "
+        f"one's): {way}", param_hint="'--policy'")
+
+
+def _other_tuners(rows: dict[str, list[GainPolicy]], tuner: str) -> dict[str, str]:
+    """A sentence for each tuner's row after the first one's (the report's preamble)."""
+    from teleopkit.rl.comparison import policy_observation
+
+    return {name: (f"another tuner given with --policy ({len(group)} "
+                   f"polic{'y' if len(group) == 1 else 'ies'}), run under the same certificate "
+                   f"with its own observation ({policy_observation(group[0])}); the comparators "
+                   f"were searched for `{tuner}`.")
+            for name, group in rows.items() if name != tuner}
 
 
 @click.command("reproduce")

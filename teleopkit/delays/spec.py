@@ -18,7 +18,8 @@ from teleopkit.delays.profiles import (
 )
 from teleopkit.delays.units import seconds
 
-__all__ = ["check_duration", "check_trace_ends", "delay_pair", "parse_delay"]
+__all__ = ["check_delay_bound", "check_duration", "check_trace_ends", "delay_pair",
+           "parse_delay"]
 
 
 _SPECS = "paper, constant:T, sine:MEAN:AMP:FREQ, switching:LOW:HIGH:DWELL or csv:PATH"
@@ -104,10 +105,29 @@ def check_duration(profiles: tuple[DelayProfile, DelayProfile], duration: float)
         One line with the delay (or the trace's end), the duration and what to change.
     """
     check_trace_ends(profiles, duration)
-    bound = max(profile.bound for profile in profiles)
+    check_delay_bound(max(profile.bound for profile in profiles), duration)
+
+
+def check_delay_bound(bound: float, duration: float, units_hint: bool = True) -> None:
+    """Refuse a delay bound that reaches the run's length (a number meant in milliseconds).
+
+    Parameters
+    ----------
+    bound : float
+        The largest delay of the run in seconds (both directions).
+    duration : float
+        Length of the run in seconds.
+    units_hint : bool
+        Whether the message may suggest milliseconds (not for delays a factor scaled).
+
+    Raises
+    ------
+    ValueError
+        One line with the delay, the duration and, for a bound above 1 s, the unit to write.
+    """
     if bound >= duration:
         hint = (f"; delays are in seconds: {bound:g} milliseconds is written {bound:g}ms (a "
-                "trace column delay_ms)" if bound > 1 else "")
+                "trace column delay_ms)" if bound > 1 and units_hint else "")
         raise ValueError(f"the delay reaches {bound:g} s, not shorter than the {duration:g} s "
                          f"run{hint}")
 

@@ -275,7 +275,8 @@ class Wall:
     Parameters
     ----------
     position : tuple of float
-        Wall position per joint in radians (``inf`` for no wall on that joint).
+        Wall position per joint in radians (``inf`` for no wall on that joint; ``-inf`` is
+        refused: that wall would push at every angle).
     stiffness : float
         Wall stiffness in N m / rad.
     damping : float
@@ -288,8 +289,9 @@ class Wall:
 
     def __post_init__(self) -> None:
         values = tuple(float(v) for v in self.position)
-        if not values or any(math.isnan(v) for v in values):
-            raise ValueError(f"wall position must be a non-empty list of numbers, got {values}")
+        if not values or any(math.isnan(v) or v == -math.inf for v in values):
+            raise ValueError("wall position must be one number per joint in rad, .inf for no wall "
+                             f"on it (-inf would push at every angle), got {values}")
         object.__setattr__(self, "position", values)
         for name in ("stiffness", "damping"):
             value = float(getattr(self, name))

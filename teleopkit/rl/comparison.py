@@ -43,10 +43,9 @@ from teleopkit.setup import Setup
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
-           "report_preamble", "schedule_label", "tuner_controller", "tuner_label"]
+           "report_preamble", "schedule_label", "tuner_controller", "tuner_label", "tuner_rows"]
 
 _log = logging.getLogger(__name__)
-
 
 
 def policy_certificate(policy: GainPolicy) -> GainCertificate:
@@ -109,6 +108,35 @@ def _observation_size(certificate: GainCertificate, kind: str) -> int:
             + layer_for(certificate).run_time_state(1).shape[1])
 
 
+def tuner_rows(policies: Sequence[GainPolicy], variation: str) -> dict[str, list[GainPolicy]]:
+    """The tuners' rows of a comparison: the policies grouped by what they are and observe.
+
+    Policies of one kind (TD3 or gain law, :func:`tuner_label`) and one observation
+    (:func:`policy_observation`) are training seeds of one tuner: one row. A policy of another
+    kind or observation has its own row, run with its own observation. A label that two
+    observations share is followed by the observation (``"TD3 (tank:3, adaptive)"``).
+
+    Parameters
+    ----------
+    policies : sequence of GainPolicy
+        The policies, in the order given (the first row is the first policy's).
+    variation : str
+        The gain class they run under.
+
+    Returns
+    -------
+    dict of str to list of GainPolicy
+        Row name to its policies, in order of first appearance.
+    """
+    groups: dict[tuple[str, str], list[GainPolicy]] = {}
+    for policy in policies:
+        key = (tuner_label(policy, variation), policy_observation(policy))
+        groups.setdefault(key, []).append(policy)
+    labels = [label for label, _ in groups]
+    return {(label if labels.count(label) == 1 else f"{label[:-1]}, {observation})"): group
+            for (label, observation), group in groups.items()}
+
+
 @reports_progress
 def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVAL_SEED,
             certificate: GainCertificate | None = None, delay: str | None = None,
@@ -120,8 +148,12 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     Parameters
     ----------
     policies : sequence of GainPolicy
-        One or more policies of one recipe (training seeds), trained under one class; a gain
-        law is moved onto the certificate first (:func:`~teleopkit.rl.law_search.law_under`).
+        One or more policies, each trained under a class the certificate covers; a gain law is
+        moved onto the certificate first (:func:`~teleopkit.rl.law_search.law_under`).
+        Policies of one kind and observation (training seeds of one recipe) make one row;
+        another kind or observation (a gain law beside a TD3 tuner) makes its own row, run with
+        its own observation after the comparators (:func:`tuner_rows`). The comparators are
+        the first policy's.
     scenarios : int
         Held-out scenarios.
     seed : int
@@ -152,7 +184,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     -------
     pandas.DataFrame
         One row per (controller, policy, scenario), tuner first, then :data:`REFERENCE`, the
-        other comparators and ``others``.
+        other comparators, the other tuners and ``others``.
     """
     if not policies:
         raise ValueError("compare needs at least one policy")
@@ -162,10 +194,11 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     config = evaluation_config(certificate, setup, delay, duration)
     policies = [law_under(policy, config) for policy in policies]
     found = comparators or comparators_for(policies[0], certificate, config)
-    tuner = replace(config, observation=policy_observation(policies[0]))
-    rows = {tuner_label(policies[0], certificate.gain_variation): (
-                [tuner_controller(p) for p in policies], tuner),
-            **found.controllers(config), **(others or {})}
+    tuners = {name: ([tuner_controller(p) for p in group],
+                     replace(config, observation=policy_observation(group[0])))
+              for name, group in tuner_rows(policies, certificate.gain_variation).items()}
+    first = next(iter(tuners))
+    rows = {first: tuners.pop(first), **found.controllers(config), **tuners, **(others or {})}
     controllers = {name: controller for name, (controller, _) in rows.items()}
     settings = {name: setting for name, (_, setting) in rows.items()}
     frames = []

@@ -50,10 +50,12 @@ from teleopkit.safety.factory import layer_for
 from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.loop import CertifiedLoop
 from teleopkit.setup import Setup
+from teleopkit.sim.motions import check_motion_ends
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.state import StateLayout
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
+from teleopkit.sim.timing import periods as whole_periods
 from teleopkit.sim.trajectory import StepResult
 
 __all__ = [
@@ -87,7 +89,9 @@ class FlexTeleopConfig:
         plant and cover its delays. Default: :func:`default_certificate` of the plant (closed
         form) for the network's delay bounds.
     episode_length : float
-        Episode duration in seconds (truncation), rounded to whole control periods.
+        Episode duration in seconds (truncation), a whole number of control periods; a recorded
+        operator motion of the setup must last that long
+        (:func:`~teleopkit.sim.motions.check_motion_ends`).
     control_period : float
         Gain hold period (agent sample time) in seconds.
     dt : float
@@ -130,13 +134,12 @@ class FlexTeleopConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive and finite, got {value}")
-        if round(self.episode_length / self.control_period) < 1:
-            raise ValueError("the episode must last at least one control period")
+        periods = whole_periods(self.episode_length, self.control_period)
         observation_size(self.observation, 1)  # refuses an unknown kind
-        periods = round(self.episode_length / self.control_period)
         if self.decision_period < 1 or periods % self.decision_period:
             raise ValueError(f"decision_period must be a whole number >= 1 of control periods "
                              f"that divides the episode's {periods}, got {self.decision_period}")
+        self.setup.operator.motion.check_ends(self.episode_length)  # a recording long enough
 
     @property
     def max_steps(self) -> int:
@@ -259,10 +262,19 @@ class TeleopBatch:
         -------
         ndarray, shape (B, 7 n)
             Observations at ``t = 0`` (the delayed signal is the constant past ``q_l(0)``).
+
+        Raises
+        ------
+        ValueError
+            A batch of another size, a recorded operator motion that ends before the episode
+            does (:func:`~teleopkit.sim.motions.check_motion_ends`), or a step the model cannot
+            integrate stably.
         """
         if scenario.batch != self.batch:
             raise ValueError(f"scenario has {scenario.batch} runs, the batch {self.batch}")
-        simulator = Simulator(scenario, self.config.dt, self.config.control_period)
+        config = self.config
+        check_motion_ends(scenario.reference_motion, config.episode_length)
+        simulator = Simulator(scenario, config.dt, config.control_period)
         state = self.loop.start(simulator)
         self.steps = 0
         delayed = StateLayout.of(state).get(state, "ql")  # the constant past

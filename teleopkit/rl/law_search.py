@@ -24,6 +24,9 @@ cheap conditions cannot hide harm on them behind a costly one, and the other way
 default): the search then pays for every scenario a law makes worse. After every ``validate_every``
 generations the distribution's mean is run on fixed validation scenarios, next to the start
 gains; the best by the same objective there is kept, as the TD3 trainer keeps its best actor.
+The start itself (the law at ``W = 0, b = 0``, objective 1 against itself) is the first
+candidate, validated before the search: a search that finds no law better on the validation
+scenarios keeps its start, never a law that does worse there than the start gains.
 """
 
 from __future__ import annotations
@@ -101,8 +104,8 @@ class LawSearchConfig:
             raise ValueError(f"population must be at least 2, got {self.population}")
         if not self.sigma > 0 or not math.isfinite(self.sigma):
             raise ValueError(f"sigma must be positive, got {self.sigma}")
-        if not self.harm >= 0:
-            raise ValueError(f"harm must be non-negative, got {self.harm}")
+        if not (math.isfinite(self.harm) and self.harm >= 0):
+            raise ValueError(f"harm must be finite and non-negative, got {self.harm}")
 
 
 @dataclass(frozen=True)
@@ -117,9 +120,11 @@ class LawSearchResult:
         One row per validation: ``generation``, ``objective`` (the generation's best),
         ``validation_objective`` (the mean law's on the validation scenarios), its
         ``validation_cost`` and the start gains' ``start_cost`` there (means over the
-        scenarios), ``wall_time`` and ``unsafe_actions`` (cumulative; must stay 0).
+        scenarios), ``wall_time`` and ``unsafe_actions`` (cumulative; must stay 0). The first
+        row, generation 0, is the start's own (objectives 1).
     start : ndarray
-        The start gains (``W = 0``).
+        The start gains (``W = 0``); ``policy`` is the law that plays them (generation 0) when
+        no law beat them on the validation scenarios.
     """
 
     policy: GainPolicy
@@ -393,9 +398,12 @@ def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
                 "certificate": certificate.to_dict(), "setup": config.setup.record,
                 "observation": config.observation,
                 "decision_period": config.decision_period}
-    rows: list[dict[str, float]] = []
-    best: tuple[float, GainPolicy] | None = None
-    unsafe, began = 0, time.perf_counter()
+    began = time.perf_counter()
+    still = laws(np.zeros((1, size)))
+    checked, unsafe = _costs(still, validation, config, 1)
+    rows = [_validated(0, 1.0, 1.0, checked[0], checked[0], began, unsafe)]
+    best = (1.0, still.policy({**metadata, "generation": 0, "validation_objective": 1.0,
+                               "validation_cost": rows[0]["validation_cost"]}))
     for generation in range(1, settings.generations + 1):
         thetas = np.asarray(search.ask())
         rng = np.random.default_rng([settings.seed, generation])
@@ -413,21 +421,25 @@ def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
         checked, count = _costs(current, validation, config, 2)
         unsafe += count
         score = float(_objective(checked[:1], checked[1], settings.harm)[0])
-        cost = float(checked[0].mean())
-        rows.append({"generation": generation, "objective": float(objective.min()),
-                     "validation_objective": score, "validation_cost": cost,
-                     "start_cost": float(checked[1].mean()),
-                     "wall_time": time.perf_counter() - began, "unsafe_actions": unsafe})
-        if best is None or score < best[0]:
+        rows.append(_validated(generation, float(objective.min()), score, checked[0],
+                               checked[1], began, unsafe))
+        if score < best[0]:
             best = (score, current.policy({**metadata, "generation": generation,
                                            "validation_objective": score,
-                                           "validation_cost": cost}))
+                                           "validation_cost": rows[-1]["validation_cost"]}))
         if out_dir is not None:
             _save(Path(out_dir), best[1], pd.DataFrame(rows), settings)
     if unsafe:
         raise RuntimeError(f"{unsafe} applied gains left the certified set")
-    assert best is not None
     return LawSearchResult(best[1], pd.DataFrame(rows), start)
+
+
+def _validated(generation: int, objective: float, score: float, costs: np.ndarray,
+               start_costs: np.ndarray, began: float, unsafe: int) -> dict[str, float]:
+    """A row of the search's log: a law's validation beside the start gains'."""
+    return {"generation": generation, "objective": objective, "validation_objective": score,
+            "validation_cost": float(costs.mean()), "start_cost": float(start_costs.mean()),
+            "wall_time": time.perf_counter() - began, "unsafe_actions": unsafe}
 
 
 def _save(out_dir: Path, policy: GainPolicy, log: pd.DataFrame,

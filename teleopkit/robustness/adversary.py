@@ -24,6 +24,7 @@ from teleopkit.safety.layer import SafetyLayer
 from teleopkit.safety.polytope import PolytopeLayer
 from teleopkit.sim.divergence import DIVERGENCE_RADIUS
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
+from teleopkit.sim.timing import periods as whole_periods
 
 __all__ = ["Decision", "SearchSpace", "decode", "gain_schedule"]
 
@@ -47,7 +48,7 @@ class SearchSpace:
     segments : int
         Piecewise-constant intervals (of the gains when switching, of ``segments`` delays).
     duration : float
-        Seconds per run.
+        Seconds per run, a whole number of control periods.
     dt : float
         Integration step.
     control_period : float
@@ -80,8 +81,7 @@ class SearchSpace:
         if isinstance(self.segments, bool) or not isinstance(self.segments, int) or \
                 self.segments < 1:
             raise ValueError(f"segments must be an integer >= 1, got {self.segments!r}")
-        if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be positive, got {self.duration}")
+        whole_periods(self.duration, self.control_period)
         if self.delays not in ("square", "segments"):
             raise ValueError(f"delays must be 'square' or 'segments', got {self.delays!r}")
         if self.switching is None or self.controller is not None:

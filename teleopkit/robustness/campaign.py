@@ -31,7 +31,13 @@ import pandas as pd
 
 from teleopkit.delays.profiles import TraceDelay
 from teleopkit.files import atomic_write, run_lock
-from teleopkit.robustness.chunks import ChunkTask, check_steps, plan_chunks, simulate_chunk
+from teleopkit.robustness.chunks import (
+    ChunkTask,
+    check_row_delays,
+    check_steps,
+    plan_chunks,
+    simulate_chunk,
+)
 from teleopkit.robustness.factors import factor_dtypes
 from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.robustness.store import ChunkStore
@@ -225,8 +231,9 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     ------
     ValueError
         A bad spec, output path or chunk size, a plant or gain the step cannot integrate stably
-        (:func:`~teleopkit.robustness.chunks.check_steps`), or chunk files of another campaign
-        in the way.
+        (:func:`~teleopkit.robustness.chunks.check_steps`), a row whose delays reach the run's
+        length (:func:`~teleopkit.robustness.chunks.check_row_delays`), or chunk files of
+        another campaign in the way.
     CampaignInterrupted
         The cluster gave up on a chunk (see Notes); the finished chunks are kept.
 
@@ -242,6 +249,7 @@ def run_campaign(spec: CampaignSpec | Mapping[str, Any] | str | Path, out: str |
     out = _check_output(out)
     scenarios = spec.expand()
     check_steps(scenarios, spec.dt, spec.control_period, spec.setup.params)
+    check_row_delays(scenarios, spec.duration, spec.setup, spec.traces())
     chunks = plan_chunks(scenarios, chunk)
     store = ChunkStore(out)
     with run_lock(out.with_name(out.name + ".lock"), str(out)), store.kept_if_used():

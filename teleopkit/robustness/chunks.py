@@ -20,6 +20,7 @@ import pandas as pd
 from teleopkit.certification.certifier import default_certificate
 from teleopkit.delays.combinators import scale_delay, stack_delays
 from teleopkit.delays.profiles import TraceDelay
+from teleopkit.delays.spec import check_delay_bound
 from teleopkit.model.params import (
     ElasticJoints,
     PDGains,
@@ -32,6 +33,7 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.factors import MODEL_FACTORS
 from teleopkit.robustness.spec import reference_gains
 from teleopkit.setup import Setup
+from teleopkit.setup.network import spec_reach
 from teleopkit.sim.divergence import Divergence
 from teleopkit.sim.metrics import RunningMetrics
 from teleopkit.sim.motions import RecordedMotion, SineMotion
@@ -39,7 +41,8 @@ from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.simulator import Simulator
 from teleopkit.sim.stability import check_motor_damping, check_step
 
-__all__ = ["METRIC_COLUMNS", "ChunkTask", "check_steps", "plan_chunks", "simulate_chunk"]
+__all__ = ["METRIC_COLUMNS", "ChunkTask", "check_row_delays", "check_steps", "plan_chunks",
+           "simulate_chunk"]
 
 METRIC_COLUMNS = ("rms_track", "iae_track", "max_track", "rms_damp", "iae_damp", "max_damp",
                   "max_position", "growth", "diverged", "unsafe_actions", "wall_time")
@@ -106,6 +109,54 @@ def check_steps(scenarios: pd.DataFrame, dt: float, control_period: float,
                 check_motor_damping(params, dt, fixed.max(), "br", control_period)
         except ValueError as error:
             raise ValueError(f"plant {plant}: {error}") from None
+
+
+def check_row_delays(scenarios: pd.DataFrame, duration: float, setup: Setup,
+                     traces: Mapping[str, TraceDelay]) -> None:
+    """Check, before any simulation, that no row's delays reach the run's length.
+
+    Each row's ``delay_bound`` (its drawn delays' bound times ``delay_scale``) must be shorter
+    than ``duration``, as :func:`teleopkit.simulate` requires of its run
+    (:func:`~teleopkit.delays.spec.check_delay_bound`). Rows whose delay level cannot reach the
+    duration pass at once; the others draw their delays from their seeds.
+
+    Parameters
+    ----------
+    scenarios : DataFrame
+        The campaign's rows (:meth:`~teleopkit.robustness.spec.CampaignSpec.expand`).
+    duration : float
+        Length of each run in seconds.
+    setup : Setup
+        The setup whose network the level ``setup`` draws.
+    traces : mapping of str to TraceDelay
+        The campaign's delay traces, keyed by level.
+
+    Raises
+    ------
+    ValueError
+        One line naming the first such row (scenario, delay, delay_scale, seed) and its delay.
+    """
+    reach = {level: _level_reach(str(level), setup, traces)
+             for level in scenarios["delay"].unique()}
+    near = scenarios["delay"].map(reach) * scenarios["delay_scale"] >= duration
+    for row in scenarios[near].to_dict("records"):
+        drawn = _row_scenario({str(k): v for k, v in row.items()}, setup, setup.params, traces)
+        try:
+            check_delay_bound(max(drawn.forward.bound, drawn.backward.bound), duration,
+                              units_hint=row["delay_scale"] == 1)  # drawn: scaled already
+        except ValueError as error:
+            raise ValueError(f"scenario {row['scenario']} (delay {row['delay']}, delay_scale "
+                             f"{row['delay_scale']:g}, seed {row['seed']}): {error}") from None
+
+
+def _level_reach(level: str, setup: Setup, traces: Mapping[str, TraceDelay]) -> float:
+    """The longest delay a ``delay`` level can draw in either direction (before its scale)."""
+    if level in traces:
+        return float(traces[level].bound)
+    specs = ([(spec, 0) for spec in setup.network.forward.profiles]
+             + [(spec, 1) for spec in setup.network.backward.profiles]
+             if level == "setup" else [(level, 0), (level, 1)])
+    return max(spec_reach(spec, direction)[1] for spec, direction in specs)
 
 
 @dataclass(frozen=True)

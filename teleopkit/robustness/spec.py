@@ -53,7 +53,7 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.robustness.factors import FACTORS, Factor, factor_dtypes
 from teleopkit.setup import Setup
 from teleopkit.sim.divergence import DIVERGENCE_RADIUS
-from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, substeps
+from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT, periods, substeps
 
 __all__ = ["MAX_SCENARIOS", "CampaignSpec", "reference_gains", "resolve"]
 
@@ -90,7 +90,9 @@ class CampaignSpec:
     seed : int
         Seed of a random campaign's draws.
     duration : float
-        Episode length in seconds.
+        Episode length in seconds (a whole number of control periods): the setup's recorded
+        operator motion (if any) must last it, and every row's delays must be shorter
+        (:func:`~teleopkit.robustness.chunks.check_row_delays`, before a run).
     dt : float
         Integration step in seconds.
     control_period : float
@@ -138,10 +140,15 @@ class CampaignSpec:
         _setting("seed", self.seed, int, positive=False)
         try:
             substeps(self.control_period, self.dt)
+            periods(self.duration, self.control_period)
         except ValueError as error:
             raise ValueError(f"campaign {error}") from None
         for gain in self.factor("reference_gain").levels:
             reference_gains(str(gain), self.setup.n_joints, None)
+        try:
+            self.setup.operator.motion.check_ends(self.duration)
+        except ValueError as error:
+            raise ValueError(f"setup operator.motion: {error}") from None
         # the files a campaign needs are read once, here: bad ones are refused before a run
         object.__setattr__(self, "_traces", {
             str(d): _read_trace(str(d), self.base_dir, self.duration)

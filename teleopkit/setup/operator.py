@@ -11,7 +11,9 @@ Motions (the ``operator.motion`` key of a setup file):
 - ``{smooth: {amplitude, frequency, decay, components}}``: random smooth motions, a few sines per
   joint with peak angle, frequencies (Hz) and decay rates drawn from the given ranges
   (:func:`~teleopkit.sim.motions.smooth_motions`);
-- ``csv:PATH``: a recorded motion, columns ``t, q1..qn`` in radians (relative to the setup file);
+- ``csv:PATH``: a recorded motion, columns ``t, q1..qn`` in radians (relative to the setup file),
+  from ``t = 0`` to at least the end of every run it drives (a shorter one is refused, as a
+  delay trace is);
 - ``still``: the operator holds the arm at the origin;
 - a list of these (but recorded motions): each scenario draws one of them uniformly.
 """
@@ -27,7 +29,13 @@ import numpy as np
 from teleopkit.model.params import Operator
 from teleopkit.setup.network import file_digest
 from teleopkit.setup.reading import Node, listed
-from teleopkit.sim.motions import Motion, RecordedMotion, SineMotion, smooth_motions
+from teleopkit.sim.motions import (
+    Motion,
+    RecordedMotion,
+    SineMotion,
+    check_motion_ends,
+    smooth_motions,
+)
 
 __all__ = ["MotionSpec", "OperatorSetup"]
 
@@ -171,6 +179,22 @@ class MotionSpec:
             return f"csv:{path}"
         return {self.kind: {key: list(value) if isinstance(value, tuple) else value
                             for key, value in settings.items()}}
+
+    def check_ends(self, duration: float) -> None:
+        """Refuse a recorded motion that ends before a run of ``duration`` seconds does.
+
+        Parameters
+        ----------
+        duration : float
+            Length of the run in seconds.
+
+        Raises
+        ------
+        ValueError
+            As :func:`~teleopkit.sim.motions.check_motion_ends` (other motions never end).
+        """
+        if self.kind == "csv":
+            check_motion_ends(RecordedMotion.from_csv(self.settings["path"]), duration)
 
     def digests(self) -> list[str]:
         """SHA-256 of a recorded motion's file (a fingerprint covers the data)."""

@@ -23,6 +23,12 @@ arm, a wall. The remote arm's and the joints' values may be ranges, ``{min: [...
 per joint (:class:`~teleopkit.model.plant_range.PlantRange`): each scenario draws them
 uniformly, around the nominal plant of their midpoints. The paper's setup ships as
 ``paper_setup.yaml`` (:data:`PAPER_SETUP_FILE`).
+
+A wall is one position per joint in radians, not a range: joint ``i`` is pushed back once
+``q_r,i`` exceeds it (``.inf``: no wall on that joint; ``-.inf`` is refused). A wall too stiff
+for the integration step is refused when a run starts
+(:func:`~teleopkit.sim.stability.check_step` names a step and the stiffest wall it
+integrates). A recorded motion (``csv:PATH``) must last as long as each run it drives.
 """
 
 from __future__ import annotations
@@ -115,9 +121,13 @@ def _environment(node: Node | None, n: int) -> Any:
         raise node.error(f"must be free or {{wall: [positions], stiffness, damping}}, got "
                          f"{node.value!r}")
     entries = node.fields(("wall", "stiffness", "damping"), ("wall",))
-    return Wall(entries["wall"].numbers(n, allow_inf=True),
-                entries["stiffness"].number(0.0) if "stiffness" in entries else 1000.0,
-                entries["damping"].number(0.0) if "damping" in entries else 5.0)
+    position = entries["wall"].numbers(n, allow_inf=True)
+    stiffness = entries["stiffness"].number(0.0) if "stiffness" in entries else 1000.0
+    damping = entries["damping"].number(0.0) if "damping" in entries else 5.0
+    try:
+        return Wall(position, stiffness, damping)
+    except ValueError as error:  # a wall at -inf
+        raise entries["wall"].error(str(error)) from None
 
 
 def _plant(node: Node) -> tuple[dict[str, Any], PlantRange]:
@@ -515,8 +525,8 @@ def _describe_plants(plants: tuple[TeleoperatorParams, ...],
 def _describe_plant(p: TeleoperatorParams, ranges: PlantRange) -> list[str]:
     """A plant for people: its arms, joints, local gains, environment and ranges."""
     arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
-            f"{listed(arm.masses)} kg" for name, arm in (("local", p.local_arm),
-                                                       ("remote", p.remote_arm))]
+            f"{listed(arm.masses)} kg{_describe_links(arm)}"
+            for name, arm in (("local", p.local_arm), ("remote", p.remote_arm))]
     wall = ("free space" if not isinstance(p.environment, Wall)
             else f"a wall at {listed(p.environment.position)} rad")
     return [*arms,
@@ -526,6 +536,15 @@ def _describe_plant(p: TeleoperatorParams, ranges: PlantRange) -> list[str]:
             f"{listed(p.local_gains.damping)}; {wall}; torque limit {p.torque_limit:g} N m",
             *(f"{PLANT_LABELS[name]} drawn per scenario in {listed(low)} to {listed(high)} "
               f"(nominal: the midpoints)" for name, (low, high) in ranges.bounds.items())]
+
+
+def _describe_links(arm: PlanarArm) -> str:
+    """An arm's centres of mass and link inertias where they are not the point-mass default."""
+    return ((f", centres of mass {listed(arm.com)} m" if arm.com is not None else "")
+            + (f", link inertias {listed(arm.inertia)} kg m^2" if arm.inertia is not None
+               else "")
+            + (" (point masses at the link tips)" if arm.com is None and arm.inertia is None
+               else ""))
 
 
 SHIPPED_SETUPS: Mapping[str, str] = MappingProxyType({"paper": PAPER_SETUP_FILE,

@@ -23,6 +23,7 @@ _EXPORTS = {
     "CONTROL_PERIOD": "timing",
     "DEFAULT_DT": "timing",
     "Divergence": "divergence",
+    "DivergenceWarning": "divergence",
     "RunningMetrics": "metrics",
     "error_metrics": "metrics",
 }

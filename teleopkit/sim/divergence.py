@@ -10,6 +10,9 @@ A run is *diverged* when
 
 The operator's reference decays, so a stable run shrinks; a shorter run is mostly its initial
 transient, and below the floor the ratio measures numerical noise, not motion.
+
+The first two tests happen at a time (:meth:`Divergence.onset`): :func:`teleopkit.simulate`
+warns with a :class:`DivergenceWarning` naming it, and ``teleopkit simulate`` exits with 1.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import numpy as np
 from teleopkit.sim.state import StateLayout
 
 __all__ = ["DIVERGENCE_RADIUS", "GROWTH_FLOOR", "GROWTH_MIN_DURATION", "Divergence",
-           "position_magnitude"]
+           "DivergenceWarning", "position_magnitude"]
 
 DIVERGENCE_RADIUS = 20.0
 """Default position magnitude (rad) that counts as divergence."""
@@ -48,6 +51,10 @@ def position_magnitude(state: np.ndarray) -> np.ndarray:
     """
     positions = np.abs(state[..., StateLayout.of(state).positions])
     return np.nan_to_num(positions, nan=np.inf).max(axis=-1)
+
+
+class DivergenceWarning(RuntimeWarning):
+    """A simulated run diverged: its state stopped being finite or left the divergence radius."""
 
 
 @dataclass(frozen=True)
@@ -101,3 +108,45 @@ class Divergence:
         growing = (growth > 1.0) & (late > self.growth_floor) & (duration >= self.min_duration)
         return {"max_position": peak, "growth": growth,
                 "diverged": ~np.asarray(finite) | (peak > self.radius) | growing}
+
+    def onset(self, t: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """When each run first stopped being finite or had a position beyond the radius.
+
+        Parameters
+        ----------
+        t : ndarray, shape (P,)
+            Recorded times in seconds.
+        state : ndarray, shape (P, B, 12 n)
+            States at those times (:class:`~teleopkit.sim.state.StateLayout`).
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The first such time of each run, NaN for a run that never diverged so (growth, the
+            third test, is a verdict on a whole run: :meth:`assess`).
+        """
+        gone = (position_magnitude(state) > self.radius) | ~np.all(np.isfinite(state), axis=-1)
+        return np.where(gone.any(axis=0), np.asarray(t)[gone.argmax(axis=0)], np.nan)
+
+    def describe(self, t: np.ndarray, state: np.ndarray, scenario: int = 0) -> str | None:
+        """One line saying when and how run ``scenario`` diverged (:meth:`onset`), or None.
+
+        Parameters
+        ----------
+        t, state
+            As for :meth:`onset`.
+        scenario : int
+            Index of the run in the batch.
+
+        Returns
+        -------
+        str or None
+            ``"the run diverged at t = ... s: ..."``; None if it did not.
+        """
+        at = self.onset(t, state[:, scenario:scenario + 1])[0]
+        if np.isnan(at):
+            return None
+        row = int(np.searchsorted(t, at))
+        how = ("its state stopped being finite" if not np.all(np.isfinite(state[row, scenario]))
+               else f"a position passed {self.radius:g} rad")
+        return f"the run diverged at t = {at:g} s: {how}"

@@ -6,7 +6,8 @@ gains, see :class:`~teleopkit.sim.scenarios.Scenario`). The paper's operator is 
 sine per joint, ``q_h,i = A_i sin(w_i t + phi_i) exp(-d_i t)``
 (:meth:`SineMotion.from_operator`); random smooth motions are sums of a few sines per joint
 with drawn amplitudes, frequencies and phases (:func:`smooth_motions`); a recorded hand motion
-is a table of times and joint angles (:meth:`RecordedMotion.from_csv`).
+is a table of times and joint angles (:meth:`RecordedMotion.from_csv`), which must last as long
+as the run it drives (:func:`check_motion_ends`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from teleopkit.model.params import Operator
 
-__all__ = ["Motion", "RecordedMotion", "SineMotion", "smooth_motions"]
+__all__ = ["Motion", "RecordedMotion", "SineMotion", "check_motion_ends", "smooth_motions"]
 
 
 @runtime_checkable
@@ -138,7 +139,10 @@ class SineMotion:
 
 @dataclass(frozen=True, eq=False)
 class RecordedMotion:
-    """A recorded operator motion, linearly interpolated; it holds its first and last poses.
+    """A recorded operator motion, linearly interpolated.
+
+    Sampled past its last sample it holds the last pose, but runs refuse a motion that ends
+    before they do (:func:`check_motion_ends`), as they refuse a delay trace that does.
 
     Parameters
     ----------
@@ -237,6 +241,27 @@ class RecordedMotion:
         t = np.asarray(times, dtype=float)
         columns = [np.interp(t, self.times, self.angles[:, i]) for i in range(self.n_joints)]
         return np.stack(columns, axis=-1)[:, None, :]
+
+
+def check_motion_ends(motion: Motion, duration: float) -> None:
+    """Refuse a recorded motion that ends before the run does: it would hold its last pose.
+
+    Parameters
+    ----------
+    motion : Motion
+        The operator motion (only a :class:`RecordedMotion` is checked: the others never end).
+    duration : float
+        Length of the run in seconds (a nanosecond short of it is the run's end: a length
+        counted in control periods may be rounded up).
+
+    Raises
+    ------
+    ValueError
+        One line with the motion's end and the run's length.
+    """
+    if isinstance(motion, RecordedMotion) and motion.duration < duration - 1e-9:
+        raise ValueError(f"the recorded operator motion ends at {motion.duration:g} s, before the "
+                         f"{duration:g} s run does: record a longer motion or shorten the run")
 
 
 def smooth_motions(rng: np.random.Generator, batch: int, n_joints: int,

@@ -12,6 +12,7 @@ shares the model; the batch axis comes first in every array.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Literal, Protocol, cast
 
@@ -22,7 +23,9 @@ from teleopkit.delays.profiles import DelayProfile
 from teleopkit.delays.spec import check_duration
 from teleopkit.model.params import TeleoperatorParams
 from teleopkit.sim.backends import Backend, CompiledBackend, NumpyBackend, constant_past
+from teleopkit.sim.divergence import Divergence, DivergenceWarning
 from teleopkit.sim.memory import check_fits
+from teleopkit.sim.motions import check_motion_ends
 from teleopkit.sim.scenarios import Scenario
 from teleopkit.sim.stability import check_motor_damping, check_step
 from teleopkit.sim.state import StateLayout
@@ -452,7 +455,17 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
     Raises
     ------
     ValueError
-        On bad input, including delays as long as the run (a number meant in milliseconds).
+        On bad input, including delays as long as the run (a number meant in milliseconds), a
+        delay trace or a recorded operator motion that ends before the run does, and a step the
+        model's damping or springs (a stiff wall) make unstable (:mod:`teleopkit.sim.stability`).
+
+    Warns
+    -----
+    DivergenceWarning
+        If the run diverged: its state stopped being finite or a position left the divergence
+        radius (:meth:`~teleopkit.sim.divergence.Divergence.describe` names the time; the
+        trajectory is returned as it is, and
+        :meth:`~teleopkit.sim.trajectory.Trajectory.diverged_at` tells it too).
     """
     from teleopkit.setup import Setup
 
@@ -463,11 +476,16 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
     scenario = setup.scenarios(seed, 1, delay)
     whole_periods(duration, control_period)
     check_duration((scenario.forward, scenario.backward), duration)
+    check_motion_ends(scenario.reference_motion, duration)
     action = None
     if gains is not None:
         gains = np.asarray(gains, dtype=float)
         action = np.repeat(gains, setup.n_joints) if gains.shape == (2,) else gains
-    return Simulator(scenario, dt, control_period).run(duration, action)
+    trajectory = Simulator(scenario, dt, control_period).run(duration, action)
+    diverged = Divergence().describe(trajectory.t, trajectory.state)
+    if diverged is not None:
+        warnings.warn(diverged, DivergenceWarning, stacklevel=2)
+    return trajectory
 
 
 def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: float = 40.0,
@@ -487,6 +505,16 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
     pandas.DataFrame
         Columns ``t, ql_i, dql_i, qr_i, dqr_i, theta_i, dtheta_i, Tl, Tr, ql_delayed_i,
         theta_delayed_i, e_track_i, e_damp_i, Kr_i, Br_i`` every control period.
+
+    Raises
+    ------
+    ValueError
+        As :func:`simulate_trajectory`.
+
+    Warns
+    -----
+    DivergenceWarning
+        As :func:`simulate_trajectory`: the run diverged (the table shows it as it is).
 
     Examples
     --------

@@ -9,9 +9,15 @@ are dampings:
   largest where the arm's inertia is smallest;
 - the remote motor's, ``B_r / J_r``, set by the remote gains.
 
-Beyond the limit the run does not fail loudly: it drifts or grows, which a campaign would count
-as a diverging plant. :class:`~teleopkit.sim.simulator.Simulator` therefore refuses a step the
-model's damping makes unstable (:func:`check_step`) and gains whose motor damping would
+The remote arm's springs are oscillating modes: the elastic joints (``S_r`` between the link and
+its rotor) and, in contact, a wall's spring-damper on the link (:func:`remote_mode`). The
+method's stability region reaches the imaginary axis only up to ``|lambda| dt = 0.86``, so a
+stiff joint or wall needs a short step.
+
+Beyond the limit the run does not fail loudly: it drifts or grows (a stiff wall's contact
+overflows to NaN), which a campaign would count as a diverging plant.
+:class:`~teleopkit.sim.simulator.Simulator` therefore refuses a step the model's damping or
+springs make unstable (:func:`check_step`) and gains whose motor damping would
 (:func:`check_motor_damping`).
 """
 
@@ -20,24 +26,36 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+from dataclasses import replace
+from typing import cast
 
 import numpy as np
 
 from teleopkit.model.dynamics import mass_matrix
-from teleopkit.model.params import PlanarArm, TeleoperatorParams
-from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
+from teleopkit.model.params import PlanarArm, TeleoperatorParams, Wall
+from teleopkit.sim.tableau import REAL_STABILITY_LIMIT, STAGES, A, B
 from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
-__all__ = ["ACCURATE_FRACTION", "accurate_step", "check_motor_damping", "check_step",
-           "largest_motor_damping", "local_damping_rate"]
+__all__ = ["ACCURATE_FRACTION", "GROWTH_PER_STEP", "accurate_step", "amplification",
+           "check_motor_damping", "check_remote_modes", "check_step", "largest_motor_damping",
+           "local_damping_rate", "remote_mode"]
 
 ACCURATE_FRACTION = 0.85
 """Fraction of the stability limit up to which a step keeps its accuracy (within 1e-5 rad of a
 converged run on the paper's model with a raised local damping; closer to the limit the step is
 stable but follows the damped mode less closely, ``docs/performance.rst``)."""
 
+GROWTH_PER_STEP = 1e-6
+"""Largest growth per step the method may add to a mode (``|R(lambda dt)| - 1``): below
+``|lambda| dt = 0.85`` an undamped mode grows by at most 1.3e-8 per step; 1e-6 is under 2 % over
+the paper's 40 s run at 2.5 ms."""
+
 _LEVELS = 720
 """Configurations searched for the local arm's smallest inertia (spread over the joints)."""
+
+_POLYNOMIAL = np.array([1.0, *(B @ np.linalg.matrix_power(A, k) @ np.ones(STAGES)
+                               for k in range(STAGES))])
+"""Coefficients of the method's stability function ``R(z)``, from ``z^0`` up."""
 
 
 def local_damping_rate(params: TeleoperatorParams) -> float:
@@ -59,22 +77,28 @@ def local_damping_rate(params: TeleoperatorParams) -> float:
         The rate in 1/s.
     """
     damping = np.asarray(params.local_gains.damping, dtype=float) + params.operator.damping
-    return _damping_rate(params.local_arm, tuple(damping.tolist()))
+    return _rate(params.local_arm, tuple(damping.tolist()))
 
 
-@functools.cache
-def _damping_rate(arm: PlanarArm, damping: tuple[float, ...]) -> float:
-    """:func:`local_damping_rate` of the local side (cached: drawn plants share it)."""
+@functools.lru_cache(maxsize=4096)
+def _rate(arm: PlanarArm, weights: tuple[float, ...]) -> float:
+    """Largest eigenvalue of ``W^1/2 M(q)^-1 W^1/2`` over the arm's configurations.
+
+    ``W = diag(weights)``: dampings (a decay rate in 1/s) or stiffnesses (a squared angular
+    frequency). Cached: drawn plants share their arms (a bounded cache: ranged arms do not).
+    """
     n = arm.n_joints
     if n == 1:
-        return float(damping[0] / mass_matrix(arm, np.zeros((1, 1)))[0, 0, 0])
+        return float(weights[0] / mass_matrix(arm, np.zeros((1, 1)))[0, 0, 0])
     levels = max(4, round(_LEVELS ** (1.0 / (n - 1))))
-    angles = np.linspace(-math.pi, math.pi, 2 * (levels // 2) + 1)  # holds 0 and pi
+    # two links: M is affine in cos q_2, so the rate (convex in it) is largest at q_2 = 0 or pi
+    angles = (np.array([0.0, math.pi]) if n == 2
+              else np.linspace(-math.pi, math.pi, 2 * (levels // 2) + 1))  # holds 0 and pi
     grid = np.array(list(itertools.product(angles, repeat=n - 1)))
     q = np.concatenate([np.zeros((len(grid), 1)), grid], axis=1)
-    scale = np.sqrt(np.asarray(damping))
+    scale = np.sqrt(np.asarray(weights))
     inverse = np.linalg.inv(mass_matrix(arm, q))
-    rates = np.linalg.eigvalsh(scale[:, None] * inverse * scale[None, :])  # D^1/2 M^-1 D^1/2
+    rates = np.linalg.eigvalsh(scale[:, None] * inverse * scale[None, :])
     return float(rates.max())
 
 
@@ -135,7 +159,10 @@ def _dividing(control_period: float, longest: float) -> float:
 
 def check_step(params: TeleoperatorParams, dt: float,
                control_period: float = CONTROL_PERIOD) -> None:
-    """Raise if ``dt`` is too long for the local arm's damping (:func:`local_damping_rate`).
+    """Raise if ``dt`` is too long for the local arm's damping or the remote arm's springs.
+
+    The local arm's damping is :func:`local_damping_rate`; the remote arm's elastic joints and
+    wall are checked by :func:`check_remote_modes`.
 
     Parameters
     ----------
@@ -149,8 +176,8 @@ def check_step(params: TeleoperatorParams, dt: float,
     Raises
     ------
     ValueError
-        If ``dt`` times the damping rate exceeds the method's stability limit; the message names
-        the limit and :func:`accurate_step`.
+        If ``dt`` times the damping rate exceeds the method's stability limit (the message names
+        the limit and :func:`accurate_step`), or as :func:`check_remote_modes`.
     """
     rate = local_damping_rate(params)
     if rate * dt > REAL_STABILITY_LIMIT:
@@ -160,6 +187,144 @@ def check_step(params: TeleoperatorParams, dt: float,
             f"the local arm's damping reaches {rate:.4g} 1/s, so dt must be at most "
             f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms; dt = {step * 1e3:.4g} ms "
             f"({round(control_period / step)} steps per control period) also keeps its accuracy")
+    check_remote_modes(params, dt, control_period)
+
+
+def amplification(z: complex | np.ndarray) -> np.ndarray:
+    """``|R(z)|``: how much one step of the method scales the mode ``exp(lambda t)``.
+
+    Parameters
+    ----------
+    z : complex or ndarray
+        ``lambda dt``.
+
+    Returns
+    -------
+    ndarray
+        ``|R(z)|``; the step is stable on the mode while it is at most 1
+        (:data:`GROWTH_PER_STEP` above it is tolerated).
+    """
+    return np.abs(np.polyval(_POLYNOMIAL[::-1], np.asarray(z, dtype=complex)))
+
+
+def remote_mode(params: TeleoperatorParams, contact: bool = False) -> complex:
+    """Fastest eigenvalue (1/s) of the remote arm's springs, in free space or wall contact.
+
+    The link, of inertia ``M_r(q)``, is held by the joint springs ``S_r`` to rotors of inertia
+    ``J_r`` and, in contact, by the wall's spring ``k`` and damper ``b`` on every joint that has
+    a wall. As a spring-damper ``s^2 + c s + w^2`` with ``w^2`` the largest eigenvalue of
+    ``M_r^-1 (S_r + k)`` plus the largest ``S_r / J_r`` and ``c`` that of ``M_r^-1 b`` over the
+    configurations (:func:`local_damping_rate`'s search): an estimate of the coupled system's
+    fastest eigenvalue, exact for one joint in free space and within 1 % of it on the paper's
+    arm, free and with a wall at either or both joints.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+    contact : bool
+        Whether the link touches every wall it has (ignored in free space).
+
+    Returns
+    -------
+    complex
+        ``lambda`` with the largest magnitude (its real part is the wall's damping, zero in
+        free space).
+    """
+    stiffness = np.asarray(params.joints.stiffness, dtype=float)
+    wall = params.environment if isinstance(params.environment, Wall) and contact else None
+    touching = np.isfinite(wall.position) if wall is not None else np.zeros(stiffness.size, bool)
+    push = touching * (wall.stiffness if wall is not None else 0.0)
+    drag = touching * (wall.damping if wall is not None else 0.0)
+    rotor = float(np.max(stiffness / np.asarray(params.joints.rotor_inertia)))
+    square = _rate(params.remote_arm, tuple((stiffness + push).tolist())) + rotor
+    rate = _rate(params.remote_arm, tuple(drag.tolist()))
+    return complex((-rate - np.sqrt(complex(rate * rate - 4.0 * square))) / 2.0)
+
+
+def check_remote_modes(params: TeleoperatorParams, dt: float,
+                       control_period: float = CONTROL_PERIOD) -> None:
+    """Raise if ``dt`` cannot integrate the remote arm's springs (:func:`remote_mode`) stably.
+
+    The joints are checked in free space, then a wall in contact.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+    dt : float
+        Integration step in seconds.
+    control_period : float
+        Gain hold period in seconds (the message proposes a step that divides it).
+
+    Raises
+    ------
+    ValueError
+        One line naming the joints or the wall, the mode, the longest stable step, a step
+        dividing the control period and, for a wall, the stiffest wall ``dt`` integrates.
+    """
+    for contact in (False, True) if isinstance(params.environment, Wall) else (False,):
+        mode = remote_mode(params, contact)
+        if not _integrates(mode, dt):
+            raise ValueError(_too_fast(params, contact, mode, dt, control_period))
+
+
+def _integrates(mode: complex | np.ndarray, dt: float | np.ndarray) -> np.ndarray:
+    """Whether steps ``dt`` integrate ``mode`` stably (to :data:`GROWTH_PER_STEP`)."""
+    return amplification(mode * dt) <= 1.0 + GROWTH_PER_STEP
+
+
+def _too_fast(params: TeleoperatorParams, contact: bool, mode: complex, dt: float,
+              control_period: float) -> str:
+    """The message of :func:`check_remote_modes` for a mode ``dt`` cannot integrate."""
+    longest = _stable_step(mode)
+    step = _dividing(control_period, min(ACCURATE_FRACTION * longest,
+                                         accurate_step(params, control_period)))
+    if contact:
+        wall = cast(Wall, params.environment)
+        what = (f"the wall (stiffness {wall.stiffness:g} N m/rad, damping {wall.damping:g} "
+                "N m s/rad) on the remote link in contact is")
+        stiffest = _floored(_stiffest_wall(params, dt))
+        keep = (f", or keep this step with a wall stiffness of at most {stiffest:.4g} N m/rad"
+                if stiffest > 0 else ", or keep this step with less wall damping")
+    else:
+        values = ", ".join(f"{v:g}" for v in params.joints.stiffness)
+        what, keep = f"the elastic joints (stiffness {values} N m/rad) are", ""
+    return (f"{what} beyond what dt = {dt * 1e3:.4g} ms integrates stably: a mode of "
+            f"{abs(mode):.4g} rad/s needs dt at most {longest * 1e3:.4g} ms; dt = "
+            f"{step * 1e3:.4g} ms ({round(control_period / step)} steps per control period) "
+            f"integrates it stably{keep}")
+
+
+def _floored(value: float) -> float:
+    """``value`` rounded down to four significant digits (what the message may promise)."""
+    if value <= 0:
+        return 0.0
+    unit = 10.0 ** (math.floor(math.log10(value)) - 3)
+    return math.floor(value / unit) * unit
+
+
+def _stable_step(mode: complex) -> float:
+    """Longest step below which every step integrates ``mode`` stably (to 0.1 %)."""
+    steps = np.linspace(0.0, 4.0, 4001) / abs(mode)  # |R| > 1 well before |z| = 4, any way
+    return float(steps[np.argmax(~_integrates(mode, steps)) - 1])  # the step 0 is stable
+
+
+def _stiffest_wall(params: TeleoperatorParams, dt: float) -> float:
+    """Largest wall stiffness (same damping) whose contact ``dt`` integrates stably; 0 if none."""
+    wall = cast(Wall, params.environment)
+
+    def stable(stiffness: float) -> bool:
+        softer = replace(params, environment=replace(wall, stiffness=stiffness))
+        return bool(_integrates(remote_mode(softer, True), dt))
+
+    low, high = 0.0, wall.stiffness
+    if not stable(low):
+        return 0.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if stable(middle) else (low, middle)
+    return low
 
 
 def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from teleopkit.sim.divergence import Divergence
 from teleopkit.sim.metrics import error_metrics
 from teleopkit.sim.state import Field, StateLayout
 
@@ -125,6 +126,22 @@ class Trajectory(StepResult):
     def metrics(self) -> pd.DataFrame:
         """RMS, IAE and maximum of the tracking and damping errors, one row per scenario."""
         return error_metrics(self.t, {"track": self.e_track, "damp": self.e_damp})
+
+    def diverged_at(self, divergence: Divergence | None = None) -> np.ndarray:
+        """When each scenario diverged (:meth:`~teleopkit.sim.divergence.Divergence.onset`).
+
+        Parameters
+        ----------
+        divergence : Divergence, optional
+            The criterion; the defaults of :class:`~teleopkit.sim.divergence.Divergence`.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The first time in seconds its state stopped being finite or a position left the
+            divergence radius; NaN for a scenario that did neither.
+        """
+        return (divergence or Divergence()).onset(self.t, self.state)
 
     def columns(self, scenario: int = 0) -> dict[str, np.ndarray]:
         """One scenario as named columns ``t, ql_i, qr_i, theta_i, ..., Kr_i, Br_i``.

@@ -107,7 +107,8 @@ def test_paper_scenarios_stay_above_their_floor():
 
 
 @pytest.mark.parametrize(("args", "needle"), [
-    (["--tl-min", "1"], "'--tl-min': 1 s is not a delay below the upper bound 1 s"),
+    (["--tl-min", "1"],
+     "'--tl-min': the minimum delay T_l_min = 1 s is not below the bound T_l* = 1 s"),
     (["--tr-min", "-0.1"], "--tr-min"),
     (["--tr-min", "nan"], "--tr-min"),
 ])

@@ -121,3 +121,29 @@ def test_a_shipped_setup_is_taken_by_name(tmp_path, monkeypatch):
     assert f"nor a shipped setup ({', '.join(SHIPPED_SETUPS)})" in unknown.stderr
     with pytest.raises(ValueError, match="no shipped setup"):
         shipped_setup_path("nosuch")
+
+
+def test_a_bad_file_given_to_setup_blames_the_file_argument(tmp_path, capsys):
+    from teleopkit.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text("plant: {local_arm: {lengths: [0.3], masses: [1]}}\nstart: paper\n")
+    assert main(["setup", str(path)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "--setup" not in lines[0]
+    assert lines[0].startswith(f"teleopkit: error: Invalid value for 'FILE': {path}: start: "
+                               "unknown start 'paper' for 1 joints")
+
+
+def test_setup_describes_the_centres_of_mass_and_link_inertias(tmp_path):
+    path = tmp_path / "com.yaml"
+    path.write_text(ARM.replace("local_arm:  {lengths: [0.3, 0.25], masses: [0.8, 0.5]}",
+                                "local_arm:  {lengths: [0.3, 0.25], masses: [0.8, 0.5], "
+                                "com: [0.15, 0.1], inertia: [0.006, 0.002]}"))
+    (tmp_path / "back.csv").write_text("t,delay\n0,0.3\n50,0.3\n")
+    done = teleopkit("setup", str(path))
+    assert done.returncode == 0, done.stderr
+    assert ("local arm: 2 links, lengths [0.3, 0.25] m, masses [0.8, 0.5] kg, centres of mass "
+            "[0.15, 0.1] m, link inertias [0.006, 0.002] kg m^2") in done.stdout
+    assert ("remote arm: 2 links, lengths [0.45, 0.35] m, masses [1.2, 0.6] kg (point masses at "
+            "the link tips)") in done.stdout

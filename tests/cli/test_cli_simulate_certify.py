@@ -188,3 +188,111 @@ def test_certify_prints_the_closed_form_first_and_keeps_the_proven_set_on_ctrl_c
     assert "[lmi] CERTIFIED for frozen gains" in out and "delay margin    not searched" in out
     assert err.strip().splitlines() == [
         "teleopkit: interrupted (finished rounds, chunks and proven sets are kept)"]
+
+
+def error_of(capsys: pytest.CaptureFixture[str], *args: str) -> str:
+    """Run the command line in this process; the one line it says on standard error (exit 2)."""
+    from teleopkit.cli import main
+
+    code = main(list(args))
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    return lines[0].removeprefix("teleopkit: error: ")
+
+
+@pytest.mark.parametrize("command", ["certify", "falsify"])
+@pytest.mark.parametrize("variation", ["tank:nan", "tank:nanrad", "rate:nan", "scheduled:nan"])
+def test_nan_in_a_gain_class_is_refused_quoting_what_was_typed(capsys, command, variation):
+    number = variation.partition(":")[2]
+    line = error_of(capsys, command, "--kr", "5:10", "--br", "30:60", "--gain-variation",
+                    variation)
+    assert line == (f"Invalid value for '--gain-variation': gain variation {variation!r}: "
+                    f"{number!r} is not a number")
+
+
+@pytest.fixture
+def delay_floor(tmp_path: Path) -> Path:
+    """The paper's setup with a backward delay of at least 50 ms."""
+    from teleopkit.setup import paper_setup_path
+
+    text = paper_setup_path().read_text().replace("backward: {min: 0.0,", "backward: {min: 0.05,")
+    path = tmp_path / "floor.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--tl-max", "nan"], "Invalid value for '--tl-max': nan is not a finite number"),
+    (["--tr-max", "nan"], "Invalid value for '--tr-max': nan is not a finite number"),
+    (["--tr-max", "inf"], "Invalid value for '--tr-max': inf is not a finite number"),
+    (["--tl-min", "nan"], "Invalid value for '--tl-min': nan is not a finite number"),
+    (["--kl", "nan"], "Invalid value for '--kl': nan is not a finite number"),
+    (["--tl-min", "0.5", "--tl-max", "0.2"],
+     "Invalid value for '--tl-min': the minimum delay T_l_min = 0.5 s is not below the bound "
+     "T_l* = 0.2 s"),
+    (["--setup", "FLOOR", "--tr-max", "0.01"],
+     "Invalid value for '--tr-max': the minimum delay T_r_min = 0.05 s is not below the bound "
+     "T_r* = 0.01 s"),
+])
+def test_certify_blames_the_option_that_is_wrong(capsys, delay_floor, args, message):
+    args = [str(delay_floor) if a == "FLOOR" else a for a in args]
+    assert error_of(capsys, "certify", "--kr", "5:10", "--br", "30:60", *args) == message
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--tl-max", "nan"], "Invalid value for '--tl-max': nan is not a finite number"),
+    (["--duration", "0.105"], "Invalid value for '--duration': duration 0.105 s is not a whole "
+                              "number of control periods of 0.01 s"),
+])
+def test_falsify_refuses_what_it_cannot_run_as_given(capsys, args, message):
+    assert error_of(capsys, "falsify", "--kr", "5:10", "--br", "30:60", *args) == message
+
+
+ONE_JOINT = """\
+plant: {local_arm: {lengths: [0.3], masses: [1]}}
+network:
+  forward: {min: 0, max: 0.5, profile: "constant:0.3"}
+  backward: {min: 0, max: 0.5, profile: "constant:0.1"}
+operator: {motion: still}
+start: rest
+"""
+
+
+def test_simulate_asks_a_one_joint_setup_for_one_value(tmp_path, capsys):
+    setup = tmp_path / "one.yaml"
+    setup.write_text(ONE_JOINT)
+    line = error_of(capsys, "simulate", "--setup", str(setup), "--kr", "10,20", "--br", "30",
+                    "--out", str(tmp_path / "x.csv"))
+    assert line == "Invalid value for '--kr': needs 1 value (the setup has one joint), got 2"
+
+
+@pytest.mark.parametrize(("args", "title"), [
+    (["--setup", "ONE"], "delays (forward / backward) constant:0.3 / constant:0.1"),
+    (["--setup", "ONE", "--delay", "constant:0.2"], "delay constant:0.2"),
+    ([], "delay paper (the paper's profile scaled by this seed's delay scales)"),
+])
+def test_the_figure_names_the_delays_of_both_directions(tmp_path, monkeypatch, args, title):
+    import teleopkit.plots as plots
+    from teleopkit.cli import main
+
+    (tmp_path / "one.yaml").write_text(ONE_JOINT)
+    titles = []
+    monkeypatch.setattr(plots, "save_run_figure",
+                        lambda table, path, title="": titles.append(title))
+    args = [str(tmp_path / "one.yaml") if a == "ONE" else a for a in args]
+    assert main(["simulate", "--kr", "10", "--br", "30", "--duration", "1.5", *args, "--out",
+                 str(tmp_path / "x.csv"), "--plot", str(tmp_path / "x.png")]) == 0
+    assert titles == [f"K_r = [10.0], B_r = [30.0], {title}"]
+
+
+def test_the_getting_started_page_shows_what_certify_prints():
+    page = Path(__file__).resolve().parents[2] / "docs" / "getting_started.rst"
+    after = page.read_text().split("   $ teleopkit certify --kr 5:10 --br 30:60\n", 1)[1]
+    shown = []
+    for line in after.splitlines():
+        if line and not line.startswith("   "):
+            break
+        shown.append(line.removeprefix("   "))
+    done = teleopkit("certify", "--kr", "5:10", "--br", "30:60")
+    assert done.returncode == 0
+    assert "\n".join(shown).strip("\n") == done.stdout.strip("\n")

@@ -212,3 +212,72 @@ def test_evaluate_moves_a_law_onto_a_certificate_with_another_set(tmp_path):
     # does its open-loop schedule: the comparators were found for the law as it runs here
     for row in ("best static (tank:3)", "open-loop (tank:3)"):
         assert cost["gain law (tank:3)"] == pytest.approx(cost[row], rel=1e-9)
+
+
+def test_evaluate_refuses_a_duration_of_no_whole_number_of_periods(tmp_path, capsys):
+    code = main(["evaluate", "--policy", "covered", "--duration", "4.005", "--scenarios", "2",
+                 "--out", str(tmp_path / "ev")])
+    assert code == 2 and capsys.readouterr().err == (
+        "teleopkit: error: Invalid value for '--duration': duration 4.005 s is not a whole "
+        "number of control periods of 0.01 s\n")
+    assert not (tmp_path / "ev").exists()
+
+
+def with_class(policy, variation: str, path) -> str:
+    """``policy`` saved to ``path`` as if trained under ``variation`` (no recorded certificate)."""
+    import copy
+
+    marked = copy.copy(policy)
+    marked.metadata = {**policy.metadata, "gain_variation": variation}
+    marked.save(path)
+    return str(path)
+
+
+def test_evaluate_names_two_policies_of_classes_one_certificate_cannot_run(policy, tmp_path,
+                                                                          capsys):
+    def refusal(*policies: str) -> str:
+        args = [a for p in policies for a in ("--policy", p)]
+        assert main(["evaluate", *args, "--out", str(tmp_path / "ev")]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "--certificate'" not in lines[0]  # none was given
+        return lines[0].removeprefix("teleopkit: error: Invalid value for '--policy': ")
+
+    assert refusal("covered", "paper") == (
+        "covered was trained under tank:3 and paper under frozen, and every policy runs under "
+        "one certificate (the first one's): neither class covers the other, so evaluate them "
+        "in separate runs")
+    small, large = (with_class(policy, f"tank:{t}", tmp_path / f"tank{t}.npz") for t in (1, 3))
+    assert refusal(small, large) == (
+        f"{small} was trained under tank:1 and {large} under tank:3, and every policy runs "
+        "under one certificate (the first one's): its class does not cover tank:3, which "
+        f"covers both: give --policy {large} first, or a --certificate of that class")
+    assert not (tmp_path / "ev").exists()
+
+
+def test_evaluate_runs_a_law_beside_a_td3_tuner_each_with_its_own_observation(policy,
+                                                                              tmp_path):
+    """One row each; each row costs what the policy costs run alone with its observation."""
+    from dataclasses import replace
+
+    from teleopkit.rl.comparison import evaluation_config
+    from teleopkit.rl.evaluation import rollout
+
+    certificate = default_certificate()
+    law = still_law(np.array([4.0, 6.0, 12.0, 20.0]), certificate)
+    paths = tmp_path / "td3.npz", tmp_path / "law.npz"
+    policy.save(paths[0])
+    law.save(paths[1])
+    done = teleopkit("evaluate", "--policy", str(paths[0]), "--policy", str(paths[1]),
+                     "--scenarios", "2", "--duration", "0.3", "--out", str(tmp_path / "ev"))
+    assert done.returncode == 0, done.stderr
+    rows = pd.read_csv(tmp_path / "ev" / "per_scenario.csv")
+    summary = pd.read_csv(tmp_path / "ev" / "summary.csv", index_col=0)
+    assert summary.index[0] == "TD3 (frozen)" and summary.index[-1] == "gain law (frozen)"
+    config = evaluation_config(certificate, duration=0.3)
+    for name, alone, observation in (("TD3 (frozen)", policy, "paper"),
+                                     ("gain law (frozen)", law, "adaptive")):
+        expected = rollout(alone, 2, 7_777, replace(config, observation=observation)).metrics()
+        np.testing.assert_allclose(rows.loc[rows["controller"] == name, "cost"],
+                                   expected["cost"], rtol=1e-12)
+    assert "`gain law (frozen)`: another tuner given with --policy (1 policy)" in \
+        (tmp_path / "ev" / "summary.md").read_text()

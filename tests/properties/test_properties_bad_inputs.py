@@ -31,7 +31,8 @@ from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.sim.scenarios import Scenario, paper_scenarios
 from teleopkit.sim.simulator import Simulator, simulate
 
-TINY = {"duration": 0.2, "factors": {"kr": [10, 20, 30]}}
+TINY = {"duration": 0.2, "factors": {"kr": [10, 20, 30], "delay": "constant:0.05"}}
+"""Runs shorter than the paper's delays: constant ones, shorter than every run here."""
 KNOWN = ("joint_stiffness, rotor_inertia, remote_mass_scale, local_mass_scale, kl, bl, delay, "
          "delay_scale, reference_gain, kr, br, seed, controller")
 SIM = ["simulate", "--kr", "10", "--br", "30", "--out", "{tmp}/x.csv"]
@@ -151,10 +152,17 @@ CLI_CASES = [
     ([*CERT, "--kl", "-3"], no_setup,
      "Invalid value for '--kl': -3.0 is not in the range x>0."),
     ([*CERT, "--gain-variation", "rate:x"], no_setup,
-     "Invalid value for '--gain-variation': gain variation rate: 'x' is not a number"),
+     "Invalid value for '--gain-variation': gain variation 'rate:x': 'x' is not a number"),
     ([*CERT, "--gain-variation", "rate:-1"], no_setup,
      "Invalid value for '--gain-variation': gain variation rate:R needs a positive finite rate, "
      "got -1"),
+    ([*CERT, "--gain-variation", "tank:nan"], no_setup,
+     "Invalid value for '--gain-variation': gain variation 'tank:nan': 'nan' is not a number"),
+    ([*CERT, "--tl-max", "nan"], no_setup,
+     "Invalid value for '--tl-max': nan is not a finite number"),
+    (["evaluate", "--policy", "{tmp}/p.npz", "--duration", "4.005", "--out", "{tmp}/e"],
+     pretrained, "Invalid value for '--duration': duration 4.005 s is not a whole number of "
+                 "control periods of 0.01 s"),
     ([*CERT, "--gain-variation", "scheduled"], no_setup,
      "Invalid value for '--gain-variation': gain variation scheduled needs a number "
      "(scheduled:N), got 'scheduled'"),
@@ -300,6 +308,12 @@ API_CASES = [
     (lambda: CampaignSpec.from_dict({"factors": {"delay": []}}), "factor 'delay' has no values"),
     (lambda: CampaignSpec.from_dict({"duration": 0}),
      "campaign duration must be positive and finite, got 0"),
+    (lambda: CampaignSpec.from_dict({"duration": 0.105}),
+     "campaign duration 0.105 s is not a whole number of control periods of 0.01 s"),
+    (lambda: FlexTeleopConfig(episode_length=4.005),
+     "duration 4.005 s is not a whole number of control periods of 0.01 s"),
+    (lambda: nuno_space(duration=0.105),
+     "duration 0.105 s is not a whole number of control periods of 0.01 s"),
     (lambda: CampaignSpec.from_dict({"dt": 0.001, "control_period": 0.0125}),
      "campaign control period 0.0125 s must be a positive multiple of the integration step "
      "0.001 s"),

@@ -16,6 +16,7 @@ from teleopkit.rl.comparison import (
     check_covers,
     compare,
     policy_certificate,
+    tuner_rows,
 )
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.td3 import TD3
@@ -98,3 +99,19 @@ def test_a_tuner_plays_with_what_it_observes_and_how_often_it_decides():
     played = schedule.for_policy(policy, FlexTeleopConfig(certificate=TANK, episode_length=0.2))
     assert played.schedule.shape == (20, 4)
     assert len(np.unique(played.schedule.round(12), axis=0)) <= 4
+
+
+def test_policies_share_a_row_only_when_they_are_one_kind_with_one_observation():
+    from teleopkit.rl.policy import GainPolicy
+
+    def made(observation: str, law: bool) -> GainPolicy:
+        metadata = {"observation": observation, **({"law_search": {}} if law else {})}
+        return GainPolicy([(np.zeros((4, 3)), np.zeros(4))], np.zeros(3), np.ones(3),
+                          np.ones(4), np.ones(4), metadata)
+
+    seeds = [made("paper", False), made("paper", False)]
+    law, adaptive = made("adaptive", True), made("adaptive", False)
+    assert tuner_rows(seeds, "tank:3") == {"TD3 (tank:3)": seeds}
+    rows = tuner_rows([seeds[0], law, seeds[1], adaptive], "tank:3")
+    assert rows == {"TD3 (tank:3, paper)": seeds, "gain law (tank:3)": [law],
+                    "TD3 (tank:3, adaptive)": [adaptive]}

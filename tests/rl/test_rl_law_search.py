@@ -67,7 +67,10 @@ def test_the_search_beats_its_start_on_its_validation_scenarios(searched):
     best = result.log["validation_objective"].min()
     assert best < 0.98 and (result.log["unsafe_actions"] == 0).all()
     chosen = result.log.loc[result.log["validation_objective"].idxmin()]
-    assert result.policy.metadata["generation"] == chosen["generation"]
+    assert result.policy.metadata["generation"] == chosen["generation"] > 0
+    first = result.log.iloc[0]  # the start's own validation, the first candidate
+    assert first["generation"] == 0 and first["validation_objective"] == 1.0
+    assert first["validation_cost"] == first["start_cost"] == result.log["start_cost"].iloc[-1]
     # the policy file computes what the search validated
     validation = SHORT.setup.scenarios(np.random.default_rng(SMALL.validation_seed), 8)
     cost = -closed_loop(result.policy, validation, SHORT).reward.sum(axis=0)
@@ -108,8 +111,24 @@ def test_the_same_seed_gives_the_same_law():
     assert first.policy.fingerprint == again.policy.fingerprint
 
 
+def test_a_search_that_finds_no_better_law_keeps_its_start():
+    """Wide steps from the start: the one law of one generation costs more on validation."""
+    settings = LawSearchConfig(generations=1, population=2, scenarios=2, sigma=2.0,
+                               validation_scenarios=4)
+    result = search_gain_law(START, settings, SHORT, progress=False)
+    assert result.log["generation"].tolist() == [0, 1]
+    assert result.log.loc[1, "validation_objective"] > 1.0  # the law found does worse
+    assert result.policy.metadata["generation"] == 0
+    obs = np.random.default_rng(2).normal(size=(5, 23))
+    np.testing.assert_allclose(result.policy(obs), np.tile(START, (5, 1)), rtol=1e-12)
+    validation = SHORT.setup.scenarios(np.random.default_rng(settings.validation_seed), 4)
+    cost = -closed_loop(result.policy, validation, SHORT).reward.sum(axis=0)
+    assert cost.mean() == pytest.approx(result.log.loc[0, "start_cost"], rel=1e-9)
+
+
 @pytest.mark.parametrize(("settings", "message"), [
     ({"population": 1}, "population"), ({"sigma": 0.0}, "sigma"), ({"harm": -1.0}, "harm"),
+    ({"harm": float("inf")}, "harm must be finite"), ({"harm": float("nan")}, "harm"),
     ({"generations": 0}, "generations"), ({"sigma": float("nan")}, "sigma")])
 def test_bad_settings_are_refused(settings, message):
     with pytest.raises(ValueError, match=message):

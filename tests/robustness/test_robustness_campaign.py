@@ -35,9 +35,10 @@ from teleopkit.robustness.factors import FACTORS
 from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.sim.scenarios import sample_reference_gains
 
-TINY = {"duration": 0.5, "factors": {"delay": ["paper", "constant:0.3"], "kr": [10, 50],
+TINY = {"duration": 1.0, "factors": {"delay": ["paper", "constant:0.3"], "kr": [10, 50],
                                      "joint_stiffness": [100, 60], "seed": [0, 1]}}
-KR_ONLY = {"duration": 0.2, "factors": {"kr": [10, 20, 30]}}
+"""Sixteen scenarios; the paper's delays (up to 1 s) are shorter than these seeds' 1 s runs."""
+KR_ONLY = {"duration": 0.2, "factors": {"kr": [10, 20, 30], "delay": "constant:0.05"}}
 """Three scenarios (the bad-input suite's ``TINY``), for the run without Dask."""
 
 
@@ -207,7 +208,8 @@ def test_an_interrupted_campaign_completes_on_resume(tmp_path, monkeypatch):
 
 def test_a_killed_campaign_process_resumes_without_duplicates(tmp_path):
     spec = tmp_path / "spec.json"
-    spec.write_text(json.dumps({"duration": 0.5, "factors": {"kr": {"linspace": [5, 40, 30]}}}))
+    spec.write_text(json.dumps({"duration": 0.5, "factors": {"kr": {"linspace": [5, 40, 30]},
+                                                             "delay": "constant:0.1"}}))
     out = tmp_path / "kill.parquet"
     chunks = out.with_name(out.name + ".chunks")
     env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
@@ -340,7 +342,7 @@ def test_resume_refuses_chunks_of_another_spec(tmp_path):
     run_campaign(TINY, out, client="synchronous", chunk=8)
     with pytest.raises(ValueError, match="holds chunks of another campaign or chunk size"):
         run_campaign(TINY, out, client="synchronous", chunk=4)
-    changed = {**TINY, "duration": 0.4}
+    changed = {**TINY, "duration": 1.2}
     with pytest.raises(ValueError, match="holds chunks of another campaign"):
         run_campaign(changed, out, client="synchronous", chunk=8)
     assert len(run_campaign(changed, out, client="synchronous", chunk=8, resume=False)) == 16
@@ -348,14 +350,15 @@ def test_resume_refuses_chunks_of_another_spec(tmp_path):
 
 def test_a_stiff_plant_runs_at_a_step_it_allows(tmp_path):
     # half the local arm's masses: the default step is refused above, 1.25 ms is stable
-    data = {"duration": 0.3, "dt": 0.00125, "factors": {"local_mass_scale": [0.5]}}
+    data = {"duration": 0.3, "dt": 0.00125, "factors": {"local_mass_scale": [0.5],
+                                                        "delay": "constant:0.1"}}
     table = run_campaign(data, tmp_path / "stiff.csv", client="synchronous")
     assert not table["diverged"].any()
 
 
 def test_cli_campaign_writes_the_table_and_exits_0(tmp_path, capsys):
     spec = tmp_path / "c.yaml"
-    spec.write_text("duration: 0.3\nfactors:\n  kr: [5, 10, 20]\n")
+    spec.write_text("duration: 0.3\nfactors:\n  kr: [5, 10, 20]\n  delay: constant:0.1\n")
     out = tmp_path / "c.csv"
     assert main(["campaign", str(spec), "--out", str(out), "--scheduler", "synchronous"]) == 0
     assert "wrote 3 scenarios" in capsys.readouterr().out
@@ -376,11 +379,51 @@ def test_cli_campaign_writes_the_table_and_exits_0(tmp_path, capsys):
     ({"factors": {"rotor_inertia": [0.1], "br": [30, 400]}},
      "rotor_inertia=0.1, remote_mass_scale=1, local_mass_scale=1, kl=25, bl=10: br = 400 is "
      "beyond what dt = 2.5 ms integrates stably on its motor (at most 135.5)"),
+    ({"mode": "grid", "duration": 4, "factors": {"delay_scale": [5]}},
+     "scenario 0 (delay paper, delay_scale 5, seed 0): the delay reaches 4.78189 s, not "
+     "shorter than the 4 s run"),
+    ({"duration": 2, "factors": {"delay": ["constant:0.5", "sine:1:1:0.5"], "seed": [3]}},
+     "scenario 1 (delay sine:1:1:0.5, delay_scale 1, seed 3): the delay reaches 2 s, not "
+     "shorter than the 2 s run; delays are in seconds: 2 milliseconds is written 2ms"),
 ])
 def test_bad_specs_raise_one_line_value_errors(data, message, tmp_path):
     with pytest.raises(ValueError, match=re.escape(message)) as error:
         run_campaign(data, tmp_path / "bad.parquet", client="synchronous")
     assert "\n" not in str(error.value)
+
+
+@pytest.mark.parametrize("scale", [1.9, 2.0, 2.1, 2.2])
+def test_a_row_is_refused_exactly_when_simulate_refuses_its_run(scale, tmp_path):
+    """The campaign checks each row's drawn delays as simulate checks its run's."""
+    spec = CampaignSpec.from_dict({"duration": 2.0, "factors": {
+        "delay_scale": [scale], "seed": {"range": [0, 4]}, "delay": ["paper", "constant:0.95"]}})
+    refused = []
+    for row in spec.expand().itertuples():
+        drawn = tk.Setup.paper().scenarios(row.seed, 1, row.delay)  # what simulate draws
+        delays = (scale_delay(drawn.forward, scale), scale_delay(drawn.backward, scale))
+        try:
+            tk.simulate((10.0, 30.0), duration=2.0, delay=delays, seed=row.seed)
+        except ValueError as error:
+            assert "not shorter than the 2 s run" in str(error)
+            refused.append(row.scenario)
+    if not refused:
+        assert len(run_campaign(spec, tmp_path / "ok.csv", client="synchronous")) == 8
+        return
+    with pytest.raises(ValueError, match=rf"^scenario {refused[0]} \(delay "):
+        run_campaign(spec, tmp_path / "refused.csv", client="synchronous")
+    assert not list(tmp_path.iterdir())
+
+
+def test_cli_campaign_refuses_delays_as_long_as_the_run_with_exit_2(tmp_path, capsys):
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("mode: grid\nduration: 4\nfactors: {delay_scale: [5]}\n")
+    code = main(["campaign", str(spec), "--out", str(tmp_path / "o.csv"), "--scheduler",
+                 "synchronous"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err == ("teleopkit: error: scenario 0 (delay paper, delay_scale 5, seed 0): the delay "
+                   "reaches 4.78189 s, not shorter than the 4 s run\n")  # no hint of ms: scaled
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["spec.yaml"]
 
 
 def test_a_campaign_that_fails_before_its_first_chunk_leaves_nothing_behind(tmp_path,

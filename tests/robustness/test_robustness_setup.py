@@ -49,7 +49,7 @@ def test_a_campaign_row_reproduces_simulate_on_the_setup(setup_file, tmp_path):
 
 def test_the_setup_option_overrides_the_spec_and_changes_the_rows(setup_file, tmp_path):
     spec = tmp_path / "spec.yaml"
-    spec.write_text("duration: 0.5\nfactors: {kr: [10], joint_stiffness: [100]}\n")
+    spec.write_text("duration: 1.0\nfactors: {kr: [10], joint_stiffness: [100]}\n")
     paper = tmp_path / "paper.csv"
     ours = tmp_path / "ours.csv"
     assert main(["campaign", str(spec), "--out", str(paper), "--workers", "1"]) == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -10,13 +11,23 @@ import pytest
 
 from teleopkit import ConstantDelay, PlanarArm, Scenario, Simulator
 from teleopkit.model.dynamics import mass_matrix
-from teleopkit.model.params import PDGains, paper_setup
+from teleopkit.model.params import (
+    ElasticJoints,
+    InitialState,
+    PDGains,
+    TeleoperatorParams,
+    Wall,
+    paper_setup,
+)
 from teleopkit.sim import simulator as simulator_module
 from teleopkit.sim.stability import (
     ACCURATE_FRACTION,
     accurate_step,
+    amplification,
+    check_step,
     largest_motor_damping,
     local_damping_rate,
+    remote_mode,
 )
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
 
@@ -99,3 +110,96 @@ def test_the_accurate_step_keeps_1e5_rad_where_the_stable_step_loses_it(damping,
     assert np.abs(positions(step) - converged).max() < 1e-5
     if step < 0.0025:
         assert np.abs(positions(0.0025) - converged).max() > 1e-5
+
+
+# --- the remote arm's springs: elastic joints and a wall in contact ---------------------------
+
+WALLED = replace(paper_setup(), environment=Wall((0.5, math.inf), 1e9, 5.0),
+                 initial=InitialState((0.8, 0.0), (0.45, 0.0), (0.55, 0.0)))
+"""The trial's wall: 1e9 N m/rad at 0.5 rad on the first joint, the link starting just short of
+it and pulled into it."""
+
+
+def _with_wall(stiffness: float) -> TeleoperatorParams:
+    return replace(WALLED, environment=replace(WALLED.environment, stiffness=stiffness))
+
+
+def _coupled_modes(params: TeleoperatorParams, contact: bool) -> np.ndarray:
+    """Every eigenvalue of the remote links, rotors, joint springs and wall, at each ``q_2``."""
+    n = params.n_joints
+    q = np.stack([np.zeros(721), np.linspace(-math.pi, math.pi, 721)], axis=1)
+    wall = params.environment if contact else None
+    touching = np.isfinite(wall.position) if wall is not None else np.zeros(n, bool)
+    spring = np.diag(params.joints.stiffness)
+    stiffness = np.block([[spring + np.diag(touching * (wall.stiffness if wall else 0.0)),
+                           -spring], [-spring, spring]])
+    damping = np.zeros((2 * n, 2 * n))
+    damping[:n, :n] = np.diag(touching * (wall.damping if wall else 0.0))
+    mass = np.zeros((len(q), 2 * n, 2 * n))
+    mass[:, :n, :n] = mass_matrix(params.remote_arm, q)
+    mass[:, n:, n:] = np.diag(params.joints.rotor_inertia)
+    inverse = np.linalg.inv(mass)
+    system = np.zeros((len(q), 4 * n, 4 * n))
+    system[:, :2 * n, 2 * n:] = np.eye(2 * n)
+    system[:, 2 * n:, :2 * n] = -inverse @ stiffness
+    system[:, 2 * n:, 2 * n:] = -inverse @ damping
+    return np.linalg.eigvals(system)
+
+
+@pytest.mark.parametrize(("params", "contact", "tolerance"), [
+    (paper_setup(), False, 1e-9), (_with_wall(1000.0), True, 0.02),
+    (replace(paper_setup(), environment=Wall((0.5, 0.5))), True, 0.02),
+    (replace(paper_setup(), environment=Wall((math.inf, 0.5), 5000.0, 20.0)), True, 0.02),
+])
+def test_the_remote_mode_is_the_fastest_coupled_eigenvalue(params, contact, tolerance):
+    fastest = np.abs(_coupled_modes(params, contact)).max()
+    assert abs(remote_mode(params, contact)) == pytest.approx(fastest, rel=tolerance)
+    assert remote_mode(params, contact).real <= 0  # the wall damps, the joints do not
+
+
+def test_the_paper_model_and_its_default_wall_pass_at_the_default_step():
+    check_step(paper_setup(), 0.0025)
+    check_step(replace(paper_setup(), environment=Wall((0.5, 0.5))), 0.0025)
+
+
+def test_a_wall_too_stiff_for_the_step_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"beyond what dt = 2\.5 ms integrates stably") as error:
+        Simulator(_scenario(WALLED))
+    message = str(error.value)
+    assert "\n" not in message and message.startswith("the wall (stiffness 1e+09 N m/rad")
+    steps = int(re.search(r"\((\d+) steps per control period\) integrates it", message)[1])
+    proposed = 0.01 / steps
+    stiffest = float(re.search(r"at most ([0-9.e+]+) N m/rad$", message)[1])
+    Simulator(_scenario(WALLED), dt=proposed)  # the step it proposes is accepted
+    Simulator(_scenario(_with_wall(stiffest)))  # and so is the wall it proposes
+    with pytest.raises(ValueError, match="the wall"):
+        Simulator(_scenario(_with_wall(1.05 * stiffest)))
+
+
+def test_the_refused_wall_really_diverges_and_the_proposed_one_does_not(monkeypatch):
+    with pytest.raises(ValueError, match="the wall") as error:
+        check_step(WALLED, 0.0025)
+    message = str(error.value)
+    stiffest = float(re.search(r"at most ([0-9.e+]+) N m/rad$", message)[1])
+    monkeypatch.setattr(simulator_module, "check_step", lambda *args: None)
+    gains = np.array([10.0, 10.0, 30.0, 30.0])
+    refused = Simulator(_scenario(WALLED)).run(1.0, gains)
+    assert not np.isfinite(refused.state).all()
+    kept = Simulator(_scenario(_with_wall(stiffest))).run(1.0, gains)
+    assert np.isfinite(kept.state).all() and np.abs(kept.state[:, 0, :6]).max() < 2.0
+
+
+def test_stiff_joints_are_refused_and_a_wall_at_minus_inf_is_no_wall():
+    stiff = replace(paper_setup(), joints=ElasticJoints((1e9, 1e9), (0.3, 0.3)))
+    with pytest.raises(ValueError, match=r"^the elastic joints \(stiffness 1e\+09, 1e\+09"):
+        check_step(stiff, 0.0025)
+    with pytest.raises(ValueError, match=r"-inf would push at every angle\), got \(-inf, inf\)"):
+        Wall((-math.inf, math.inf))
+    check_step(replace(paper_setup(), environment=Wall((math.inf, math.inf))), 0.0025)
+
+
+def test_the_stability_function_is_the_methods():
+    z = np.array([-3.38, -1.0, 0.5j, -0.2 + 0.9j])
+    assert amplification(z) == pytest.approx(np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+                                                    + z**5 / 120 + z**6 / 640), rel=1e-12)
+    assert amplification(-REAL_STABILITY_LIMIT) <= 1.0 < amplification(-3.39)
