@@ -69,7 +69,8 @@ SB3_BEST = {"discount": 0.99, "learning_rate": 1e-3, "envs": 16, "episode_length
             "actor_start": "centre"}
 """SB3's best settings on the paper's benchmark (searched: discounts 0.95 and 0.99, learning
 rates 3e-4 to 3e-3, 16 and 64 scenarios, 10 and 40 s training episodes, minibatches of 128 and
-512; batch 512 is the grid's default)."""
+512, the actor started at the centre of the box or at the best constant gains; batch 512 is the
+grid's default)."""
 
 
 SPLIT = ("simulation", "projection", "update", "validation")

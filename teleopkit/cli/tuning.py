@@ -45,8 +45,10 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
               show_default=True,
               help="Training recipe (teleopkit.rl.recipes.RECIPES): the paper's, 40 s "
                    "episodes, critics of the certified gains; or fast, 10 s training episodes "
-                   "validated on 40 s ones, critics of the raw gains, a tanh output (faster and "
-                   "better on the training setup, far worse on starts it never saw).")
+                   "validated on 40 s ones, critics of the raw gains, a tanh output started "
+                   "at the class's best constant gains (searched first, about half a minute; "
+                   "faster and better on the training setup, far worse on starts it never "
+                   "saw).")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/train", show_default=True,
               help="Directory for checkpoint.pt, train_log.csv, policy.npz, best_policy.npz, "
                    "config.json and certificate.json.")
@@ -78,7 +80,8 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: 
     (the certificate is recorded in the policy files, and evaluate uses it). The other settings
     are the recipe's (--recipe, teleopkit.rl.recipes.RECIPES): the paper's TD3 on 40 s
     episodes by default (learning rates 1e-3, discount 0.95), or the fast one (10 s training
-    episodes, discount 0.99); either keeps the best policy by its validation cost on 40 s
+    episodes, discount 0.99, the actor started at the best constant gains of its class for the
+    setup); either keeps the best policy by its validation cost on 40 s
     episodes, and its first round explores with uniform random gains.
     """
     require_torch()

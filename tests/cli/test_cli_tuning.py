@@ -93,22 +93,27 @@ def test_train_command_refuses_to_mix_runs(tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
 
 
-def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path):
-    """The fast recipe on request (10 s rounds, a tanh map); a resumed run keeps its recipe and
-    refuses another in one line."""
+def test_train_runs_the_fast_recipe_and_resumes_only_with_it(tmp_path, monkeypatch):
+    """The fast recipe on request (10 s rounds, a tanh map started at the best constant gains);
+    a resumed run keeps its recipe and refuses another in one line."""
+    from teleopkit.rl.baselines import StaticGains
     from teleopkit.rl.policy import GainPolicy
     from teleopkit.rl.recipes import RECIPES, TrainConfig
 
+    found = np.array([4.0, 5.0, 10.0, 20.0])  # the search itself is tested in tests/rl
+    monkeypatch.setattr("teleopkit.rl.baselines.best_static_gains",
+                        lambda *args, **kwargs: StaticGains(found, 0.0, found, 0.0, 1))
     out = tmp_path / "fast"
-    done = teleopkit("train", "--recipe", "fast", "--steps", "10", "--envs", "1", "--out",
-                     str(out))
-    assert done.returncode == 0, done.stderr
+    assert main(["train", "--recipe", "fast", "--steps", "10", "--envs", "1", "--out",
+                 str(out)]) == 0
     recorded = TrainConfig.from_dict(json.loads((out / "config.json").read_text()))
     fast = RECIPES["fast"]
     assert recorded.td3 == fast.td3 and recorded.episode_length == fast.episode_length
+    assert recorded.actor_start == "best static"
     assert recorded.learning_starts == 500  # half of the one round of 1000 periods
     assert len(pd.read_csv(out / "train_log.csv")) == 1
-    assert GainPolicy.load(out / "policy.npz").output == "tanh"
+    policy = GainPolicy.load(out / "policy.npz")
+    assert policy.output == "tanh" and policy.metadata["start_gains"] == found.tolist()
     refused = teleopkit("train", "--steps", "2000", "--envs", "1", "--resume", "--recipe",
                         "paper", "--out", str(out))
     assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
