@@ -9,8 +9,10 @@ are dampings:
   largest where the arm's inertia is smallest;
 - the remote motor's, ``B_r / J_r``, set by the remote gains.
 
-The remote arm's springs are oscillating modes: the elastic joints (``S_r`` between the link and
-its rotor) and, in contact, a wall's spring-damper on the link (:func:`remote_mode`). The
+The arms' springs are oscillating modes: on the local side the operator's spring and the local
+controller's stiffness (:func:`local_mode`), on the remote side the elastic joints (``S_r``
+between the link and its rotor) and, in contact, a wall's spring-damper on the link
+(:func:`remote_mode`). The
 method's stability region reaches the imaginary axis only up to ``|lambda| dt = 0.86``, so a
 stiff joint or wall needs a short step.
 
@@ -38,7 +40,7 @@ from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
 
 __all__ = ["ACCURATE_FRACTION", "GROWTH_PER_STEP", "accurate_step", "amplification",
            "check_motor_damping", "check_remote_modes", "check_step", "largest_motor_damping",
-           "local_damping_rate", "remote_mode"]
+           "local_damping_rate", "local_mode", "remote_mode"]
 
 ACCURATE_FRACTION = 0.85
 """Fraction of the stability limit up to which a step keeps its accuracy (within 1e-5 rad of a
@@ -177,7 +179,8 @@ def check_step(params: TeleoperatorParams, dt: float,
     ------
     ValueError
         If ``dt`` times the damping rate exceeds the method's stability limit (the message names
-        the limit and :func:`accurate_step`), or as :func:`check_remote_modes`.
+        the limit and :func:`accurate_step`), if ``dt`` cannot integrate the local arm's springs
+        (:func:`local_mode`), or as :func:`check_remote_modes`.
     """
     rate = local_damping_rate(params)
     if rate * dt > REAL_STABILITY_LIMIT:
@@ -187,7 +190,42 @@ def check_step(params: TeleoperatorParams, dt: float,
             f"the local arm's damping reaches {rate:.4g} 1/s, so dt must be at most "
             f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms; dt = {step * 1e3:.4g} ms "
             f"({round(control_period / step)} steps per control period) also keeps its accuracy")
+    mode = local_mode(params)
+    if not _integrates(mode, dt):
+        springs = ", ".join(f"{v:g}" for v in params.local_gains.stiffness)
+        what = (f"the local arm's springs (operator stiffness K_s = {params.operator.stiffness:g}"
+                f" N m/rad, local gains K_l = {springs} N m/rad) are")
+        raise ValueError(_beyond(params, what, mode, dt, control_period))
     check_remote_modes(params, dt, control_period)
+
+
+def local_mode(params: TeleoperatorParams) -> complex:
+    """Fastest eigenvalue (1/s) of the local arm's springs and dampers.
+
+    The link, of inertia ``M_l(q)``, is pulled by the operator's spring ``K_s`` and the local
+    controller's ``K_l`` (its part on ``q_l``; the delayed remote position enters as an input)
+    and damped by ``K_d + B_l``: as a spring-damper ``s^2 + c s + w^2`` with ``w^2`` the largest
+    eigenvalue of ``M_l^-1 (K_s + K_l)`` and ``c`` that of ``M_l^-1 (K_d + B_l)`` over the
+    configurations (:func:`local_damping_rate`), the estimate :func:`remote_mode` makes.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        The teleoperator.
+
+    Returns
+    -------
+    complex
+        ``lambda`` with the largest magnitude.
+    """
+    springs = np.asarray(params.local_gains.stiffness, dtype=float) + params.operator.stiffness
+    square = _rate(params.local_arm, tuple(springs.tolist()))
+    return _spring_damper(square, local_damping_rate(params))
+
+
+def _spring_damper(square: float, rate: float) -> complex:
+    """The faster root of ``s^2 + rate s + square``."""
+    return complex((-rate - np.sqrt(complex(rate * rate - 4.0 * square))) / 2.0)
 
 
 def amplification(z: complex | np.ndarray) -> np.ndarray:
@@ -238,8 +276,7 @@ def remote_mode(params: TeleoperatorParams, contact: bool = False) -> complex:
     drag = touching * (wall.damping if wall is not None else 0.0)
     rotor = float(np.max(stiffness / np.asarray(params.joints.rotor_inertia)))
     square = _rate(params.remote_arm, tuple((stiffness + push).tolist())) + rotor
-    rate = _rate(params.remote_arm, tuple(drag.tolist()))
-    return complex((-rate - np.sqrt(complex(rate * rate - 4.0 * square))) / 2.0)
+    return _spring_damper(square, _rate(params.remote_arm, tuple(drag.tolist())))
 
 
 def check_remote_modes(params: TeleoperatorParams, dt: float,
@@ -277,9 +314,6 @@ def _integrates(mode: complex | np.ndarray, dt: float | np.ndarray) -> np.ndarra
 def _too_fast(params: TeleoperatorParams, contact: bool, mode: complex, dt: float,
               control_period: float) -> str:
     """The message of :func:`check_remote_modes` for a mode ``dt`` cannot integrate."""
-    longest = _stable_step(mode)
-    step = _dividing(control_period, min(ACCURATE_FRACTION * longest,
-                                         accurate_step(params, control_period)))
     if contact:
         wall = cast(Wall, params.environment)
         what = (f"the wall (stiffness {wall.stiffness:g} N m/rad, damping {wall.damping:g} "
@@ -290,6 +324,15 @@ def _too_fast(params: TeleoperatorParams, contact: bool, mode: complex, dt: floa
     else:
         values = ", ".join(f"{v:g}" for v in params.joints.stiffness)
         what, keep = f"the elastic joints (stiffness {values} N m/rad) are", ""
+    return _beyond(params, what, mode, dt, control_period, keep)
+
+
+def _beyond(params: TeleoperatorParams, what: str, mode: complex, dt: float,
+            control_period: float, keep: str = "") -> str:
+    """One line: ``what`` has a mode ``dt`` cannot integrate; the step that can."""
+    longest = _stable_step(mode)
+    step = _dividing(control_period, min(ACCURATE_FRACTION * longest,
+                                         accurate_step(params, control_period)))
     return (f"{what} beyond what dt = {dt * 1e3:.4g} ms integrates stably: a mode of "
             f"{abs(mode):.4g} rad/s needs dt at most {longest * 1e3:.4g} ms; dt = "
             f"{step * 1e3:.4g} ms ({round(control_period / step)} steps per control period) "

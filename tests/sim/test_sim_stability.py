@@ -27,6 +27,7 @@ from teleopkit.sim.stability import (
     check_step,
     largest_motor_damping,
     local_damping_rate,
+    local_mode,
     remote_mode,
 )
 from teleopkit.sim.tableau import REAL_STABILITY_LIMIT
@@ -203,3 +204,42 @@ def test_the_stability_function_is_the_methods():
     assert amplification(z) == pytest.approx(np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
                                                     + z**5 / 120 + z**6 / 640), rel=1e-12)
     assert amplification(-REAL_STABILITY_LIMIT) <= 1.0 < amplification(-3.39)
+
+
+def _stiff_operator(stiffness: float) -> TeleoperatorParams:
+    """The paper's teleoperator with an operator spring of ``stiffness`` N m/rad."""
+    params = paper_setup()
+    return replace(params, operator=replace(params.operator, stiffness=stiffness))
+
+
+@pytest.mark.parametrize("stiffness", [10.0, 1e4, 1e7])
+def test_the_local_mode_is_the_local_arms_fastest_eigenvalue(stiffness):
+    """Against numpy's eigenvalues of the local arm's linearised springs and dampers,
+    ``[[0, I], [-M^-1 (K_s + K_l), -M^-1 (K_d + B_l)]]``, over its configurations."""
+    params = _stiff_operator(stiffness)
+    springs = np.diag(np.asarray(params.local_gains.stiffness) + stiffness)
+    dampers = np.diag(np.asarray(params.local_gains.damping) + params.operator.damping)
+    fastest = 0.0
+    for m in mass_matrix(params.local_arm, np.stack([np.zeros(73), np.linspace(-math.pi,
+                                                                               math.pi, 73)], 1)):
+        inverse = np.linalg.inv(m)
+        system = np.block([[np.zeros((2, 2)), np.eye(2)],
+                           [-inverse @ springs, -inverse @ dampers]])
+        fastest = max(fastest, np.abs(np.linalg.eigvals(system)).max())
+    assert abs(local_mode(params)) == pytest.approx(fastest, rel=1e-9)
+
+
+def test_a_stiff_operator_is_refused_and_the_proposed_step_integrates_it(monkeypatch):
+    stiff = _stiff_operator(1e7)
+    with pytest.raises(ValueError, match=r"^the local arm's springs \(operator stiffness K_s = "
+                                         r"1e\+07 N m/rad") as error:
+        check_step(stiff, 0.0025)
+    proposed = 0.01 / int(re.search(r"\((\d+) steps per control period\)", str(error.value))[1])
+    check_step(stiff, proposed)
+    check_step(_stiff_operator(1e4), 0.0025)  # stiff, and still within the default step
+    monkeypatch.setattr(simulator_module, "check_step", lambda *args: None)
+    gains = np.array([10.0, 10.0, 30.0, 30.0])
+    refused = Simulator(_scenario(stiff)).run(0.1, gains)
+    assert not np.isfinite(refused.state).all()
+    kept = Simulator(_scenario(stiff), dt=proposed).run(0.1, gains)
+    assert np.isfinite(kept.state).all()
