@@ -58,6 +58,7 @@ from teleopkit.rl.baselines import best_static_gains
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.env import COVERING_CLASS, FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import rollout
+from teleopkit.rl.networks import half_range, inside_box
 from teleopkit.rl.recipes import ACTOR_STARTS, RECIPES
 from teleopkit.rl.training import train
 from teleopkit.setup import SHIPPED_SETUPS, Setup, shipped_setup_path
@@ -187,8 +188,7 @@ def _start_at(model: Any, gains: np.ndarray, low: np.ndarray, high: np.ndarray) 
     ``tanh(z)`` rescaled onto the box, ``z`` shifted by ``artanh`` of the gains' place in it,
     1 % of the range inside an edge.
     """
-    margin = 0.01 * (high - low)
-    place = (np.clip(gains, low + margin, high - margin) - (low + high) / 2) / ((high - low) / 2)
+    place = (inside_box(gains, low, high) - (low + high) / 2) / half_range(low, high)
     with torch.no_grad():
         model.actor.mu[-2].bias.add_(torch.as_tensor(np.arctanh(place), dtype=torch.float32))
     model.actor_target.load_state_dict(model.actor.state_dict())

@@ -22,7 +22,7 @@ from torch.nn import functional as F
 
 from teleopkit.rl.policy import check_output_map
 
-__all__ = ["Actor", "Critic", "Standardise", "half_range"]
+__all__ = ["Actor", "Critic", "Standardise", "half_range", "inside_box"]
 
 _LN2 = math.log(2.0)
 
@@ -179,6 +179,31 @@ def half_range(low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """
     half = (np.asarray(high, dtype=float) - np.asarray(low, dtype=float)) / 2
     return np.where(half > 0, half, 1.0)
+
+
+def inside_box(gains: np.ndarray, low: np.ndarray, high: np.ndarray,
+               margin: float = 0.01) -> np.ndarray:
+    """``gains`` moved at least ``margin`` of the box's range inside it.
+
+    A start an output map can take: tanh and softplus reach the edges only in the limit.
+
+    Parameters
+    ----------
+    gains : ndarray, shape (act_dim,)
+        Gains in or on the box.
+    low, high : ndarray, shape (act_dim,)
+        The action box.
+    margin : float
+        Fraction of each gain's range.
+
+    Returns
+    -------
+    ndarray, shape (act_dim,)
+        The gains clipped to ``[low + margin (high - low), high - margin (high - low)]``.
+    """
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    inset = margin * (high - low)
+    return np.clip(gains, low + inset, high - inset)
 
 
 class Critic(nn.Module):

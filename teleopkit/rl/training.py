@@ -54,6 +54,7 @@ from gymnasium.spaces import Box
 from teleopkit.files import atomic_write, run_lock
 from teleopkit.rl.controllers import HeldController
 from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
+from teleopkit.rl.networks import inside_box
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.rl.recipes import TrainConfig
 from teleopkit.rl.replay import NStepWindow, ReplayBuffer
@@ -167,8 +168,7 @@ class _Run:
         from teleopkit.rl.baselines import best_static_gains
 
         gains = best_static_gains(config=self.validation_config, progress=progress).gains
-        margin = 0.01 * (self.high - self.low)
-        return np.clip(gains, self.low + margin, self.high - margin)
+        return inside_box(gains, self.low, self.high)
 
     def fingerprint(self) -> dict[str, Any]:
         """Everything that determines the results (compared on resume)."""

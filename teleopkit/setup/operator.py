@@ -20,6 +20,7 @@ Motions (the ``operator.motion`` key of a setup file):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -142,7 +143,7 @@ class MotionSpec:
     @classmethod
     def _recorded(cls, node: Node, path: Path, n: int) -> MotionSpec:
         try:
-            motion = RecordedMotion.from_csv(path)
+            motion = _recording(path)
         except ValueError as error:
             raise node.error(str(error)) from None
         if motion.n_joints != n:
@@ -194,7 +195,7 @@ class MotionSpec:
             As :func:`~teleopkit.sim.motions.check_motion_ends` (other motions never end).
         """
         if self.kind == "csv":
-            check_motion_ends(RecordedMotion.from_csv(self.settings["path"]), duration)
+            check_motion_ends(_recording(self.settings["path"]), duration)
 
     def digests(self) -> list[str]:
         """SHA-256 of a recorded motion's file (a fingerprint covers the data)."""
@@ -236,7 +237,7 @@ class MotionSpec:
                                         settings["frequency"], settings["decay"],
                                         settings["components"])
         if self.kind == "csv":
-            return ones, RecordedMotion.from_csv(settings["path"])
+            return ones, _recording(settings["path"])
         zeros = np.zeros((1, 1, n))
         return ones, SineMotion(zeros, zeros, zeros, zeros)
 
@@ -261,6 +262,25 @@ class MotionSpec:
         if self.kind == "mix":
             return "one of: " + "; ".join(part.describe() for part in settings["parts"])
         return "the operator holds the origin"
+
+
+def _recording(path: str | Path) -> RecordedMotion:
+    """The recorded motion in ``path``, read once while the file stays as it is.
+
+    Setups check a recording's length at every environment they configure and draw it at every
+    batch of scenarios; the file is read again only when its size or modification time changes.
+    """
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return RecordedMotion.from_csv(path)  # which names the problem in one line
+    return _read_recording(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=16)
+def _read_recording(path: str, modified: int, size: int) -> RecordedMotion:
+    """:meth:`RecordedMotion.from_csv`, cached by the file's path, modification time and size."""
+    return RecordedMotion.from_csv(path)
 
 
 def _draw_mix(parts: tuple[MotionSpec, ...], rng: np.random.Generator, batch: int, n: int,
