@@ -179,6 +179,6 @@ fast recipe came 10 % below the frozen class's best static gains in a median of 
 seeds, the search of its start included (without the start: 170 s; the paper's recipe: 237 s),
 and its whole training ended lower than the paper's recipe's for each seed
 (``benchmarks/README.md``, ``bench_vs_sb3.py``). But its tuners harm off their setup: from a
-start at rest they cost 2 to 5 times as much as the best constant gains (the paper's recipe's:
+start at rest they cost 1.6 to 5 times as much as the best constant gains (the paper's recipe's:
 +10 %).
 """
