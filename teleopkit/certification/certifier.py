@@ -23,6 +23,7 @@ from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
+from teleopkit.certification.nuno.scheduled import plants_tank
 from teleopkit.certification.question import Question
 from teleopkit.certification.verification import cover_plants
 from teleopkit.model.params import TeleoperatorParams, paper_setup
@@ -165,6 +166,8 @@ def default_certificate(params: TeleoperatorParams | None = None,
     box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
     forward, backward = (delay_bound if isinstance(delay_bound, tuple)
                          else (delay_bound, delay_bound))
+    if plants:
+        variation = plants_tank(plants, box, forward, backward, variation, ranges)
     certificate = certify_gains(params, box, forward, backward, method="nuno",
                                 variation=variation)
     return cover_plants(certificate, plants, ranges) if plants else certificate

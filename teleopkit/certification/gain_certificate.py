@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
@@ -24,7 +26,25 @@ from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import InitialState, TeleoperatorParams, plant_params
 from teleopkit.model.plant_range import PlantRange
 
-__all__ = ["GainCertificate"]
+__all__ = ["DelayBoundError", "GainCertificate"]
+
+
+class DelayBoundError(ValueError):
+    """Delays that can exceed a certificate's bound (:meth:`GainCertificate.check`).
+
+    Attributes
+    ----------
+    direction : str
+        ``"forward"`` or ``"backward"``.
+    reach : float
+        The largest delay of that direction in use, in seconds.
+    bound : float
+        The certificate's bound there, in seconds.
+    """
+
+    direction: str = ""
+    reach: float = math.nan
+    bound: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -135,14 +155,19 @@ class GainCertificate:
         -------
         StorageGuarantee or None
             Largest spring deflection, speeds and position mismatch along every run of the
-            class (:mod:`teleopkit.certification.nuno.guarantee`); None for the other classes
+            class (:mod:`teleopkit.certification.nuno.guarantee`), for every plant the
+            certificate covers (its other plants and ranges too); None for the other classes
             or an empty set.
         """
         allowed, storage = self.scheduled_set, self.storage
         if allowed is None or storage is None or allowed.is_empty:
             return None
-        params = replace(plant_params(self.plant), initial=start or InitialState())
-        return storage_guarantee(params, storage, allowed, self.variation)
+        initial = start or InitialState()
+        return StorageGuarantee.worst([
+            storage_guarantee(replace(plant_params(record), initial=initial), storage, allowed,
+                              self.variation, interval)
+            for record, interval in zip((self.plant, *self.other_plants), self.ranges,
+                                        strict=True)])
 
     @property
     def storage(self) -> ScheduledStorage | None:
@@ -173,7 +198,7 @@ class GainCertificate:
 
     def check(self, params: TeleoperatorParams | Sequence[TeleoperatorParams],
               forward_bound: float | None = None, backward_bound: float | None = None,
-              floors: tuple[float, float] = (0.0, 0.0)) -> None:
+              floors: tuple[float, float] = (0.0, 0.0), units_hint: bool = True) -> None:
         """Refuse the certificate for a plant it does not cover or for delays outside its bounds.
 
         Parameters
@@ -185,11 +210,16 @@ class GainCertificate:
         floors : tuple of float
             Declared lower bounds of the forward and backward profiles (seconds): a certificate
             for delays from ``T_i_min > 0`` is refused for profiles that can fall below it.
+        units_hint : bool
+            Whether a refusal of the delay bounds may suggest a value was meant in
+            milliseconds (only where one was typed without a unit).
 
         Raises
         ------
+        DelayBoundError
+            One line, for delays that can exceed the bounds.
         ValueError
-            One line naming the difference.
+            One line naming the difference, for another plant or delays below the floors.
         """
         if not self.plant:
             raise ValueError("the certificate names no plant; certify again with this teleopkit")
@@ -205,9 +235,12 @@ class GainCertificate:
         for name, bound, certified in (("forward", forward_bound, self.delay_bounds[0]),
                                        ("backward", backward_bound, self.delay_bounds[1])):
             if bound is not None and bound > certified:
-                raise ValueError(f"the {name} delay can reach {bound:.6g} s, beyond the "
-                                 f"certificate's bound {certified:g} s (delays in seconds: a "
-                                 "value in milliseconds needs the ms unit)")
+                hint = (" (delays in seconds: a value in milliseconds needs the ms unit)"
+                        if units_hint else "")
+                error = DelayBoundError(f"the {name} delay can reach {bound:.6g} s, beyond the "
+                                        f"certificate's bound {certified:g} s{hint}")
+                error.direction, error.reach, error.bound = name, bound, certified
+                raise error
         for name, floor, certified in zip(("forward", "backward"), floors, self.delay_lower,
                                           strict=True):
             if floor < certified:
@@ -255,8 +288,8 @@ class GainCertificate:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
-    def from_json(cls, text: str) -> GainCertificate:
-        """Inverse of :meth:`to_json`: parse, nothing more.
+    def from_json(cls, text: str | os.PathLike[str]) -> GainCertificate:
+        """Inverse of :meth:`to_json`: parse (a file's text, given its path), nothing more.
 
         A parsed certificate is a claim. Reading one for use goes through
         :func:`~teleopkit.certification.verification.load_certificate`, which parses and
@@ -264,8 +297,10 @@ class GainCertificate:
 
         Parameters
         ----------
-        text : str
-            JSON text as :meth:`to_json` writes it.
+        text : str or os.PathLike
+            JSON text as :meth:`to_json` writes it, or the path of a file holding it: a path
+            object, or a string naming an existing file or shaped like a path (one line with
+            ``/`` in it or ``.json`` at its end, not starting with ``{``).
 
         Returns
         -------
@@ -275,10 +310,13 @@ class GainCertificate:
         Raises
         ------
         ValueError
-            One line naming what is malformed.
+            One line naming what is malformed, or a file that is missing or unreadable.
+        TypeError
+            If ``text`` is neither a string nor a path.
         """
+        source = _json_text(text)
         try:
-            data = json.loads(text)
+            data = json.loads(source)
             ranges = data["box"]
             box = GainBox(tuple(map(tuple, ranges["kr"])), tuple(map(tuple, ranges["br"])))
             margin = data["delay_margin"]
@@ -296,6 +334,31 @@ class GainCertificate:
                 plant_ranges=tuple(dict(record) for record in data.get("plant_ranges", ())))
         except (KeyError, TypeError, ValueError, json.JSONDecodeError) as error:
             raise ValueError(f"malformed gain certificate: {error}") from None
+
+
+def _names_file(text: str) -> bool:
+    """Whether ``text`` is a path, not JSON: one line, no ``{``, a file's name or a path's shape."""
+    if text.lstrip()[:1] in ("{", "") or "\n" in text.strip():
+        return False
+    return text.endswith(".json") or "/" in text or os.sep in text or os.path.isfile(text)
+
+
+def _json_text(source: str | bytes | os.PathLike[str]) -> str | bytes:
+    """``source`` if it is JSON text (:func:`_names_file`), else the text of the file it names."""
+    if isinstance(source, bytes | bytearray) or (isinstance(source, str)
+                                                 and not _names_file(source)):
+        return source
+    if not isinstance(source, str | os.PathLike):
+        raise TypeError(f"text must be a certificate's JSON text or a path, got "
+                        f"{type(source).__name__}")
+    try:
+        return Path(source).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"no such certificate file: {os.fspath(source)} (give a certificate "
+                         "file or its JSON text)") from None
+    except (OSError, ValueError) as error:  # a directory, unreadable, not UTF-8
+        reason = getattr(error, "strerror", None) or str(error)
+        raise ValueError(f"cannot read certificate file {os.fspath(source)}: {reason}") from None
 
 
 def _delay_lower(values: Any) -> tuple[float, float]:

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +65,31 @@ def box_within(inner: tuple[np.ndarray, np.ndarray], outer: tuple[np.ndarray, np
     return bool(np.all(inner[0] >= outer[0] - slack) and np.all(inner[1] <= outer[1] + slack))
 
 
+def _pair(name: str, value: Any) -> tuple[float, float]:
+    """``value`` as a ``(min, max)`` pair of numbers, or a one-line error naming ``name``."""
+    message = f"{name} range must be a (min, max) pair, got {value!r}"
+    if isinstance(value, str):  # "5:10" as --kr takes it, or one number
+        raise TypeError(f"{message} (parse_range reads MIN:MAX text)")
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise TypeError(message) from None
+    if len(items) != 2:
+        raise ValueError(message)
+    try:
+        return float(items[0]), float(items[1])
+    except (TypeError, ValueError):
+        raise TypeError(f"{message}: not numbers") from None
+
+
+def _ranges(name: str, ranges: object) -> tuple[tuple[float, float], ...]:
+    """One checked ``(min, max)`` pair of ``name`` per joint (:func:`_pair`)."""
+    if isinstance(ranges, str) or not isinstance(ranges, Iterable):
+        raise TypeError(f"{name} ranges must be one (min, max) pair per joint, got "
+                        f"{type(ranges).__name__}")
+    return tuple(_pair(name, pair) for pair in ranges)
+
+
 def _check_range(name: str, low: float, high: float) -> None:
     if not (math.isfinite(low) and math.isfinite(high)):
         raise ValueError(f"{name} range must be finite, got {low}:{high}")
@@ -88,8 +115,7 @@ class GainBox:
     br: tuple[tuple[float, float], ...]
 
     def __post_init__(self) -> None:
-        kr = tuple((float(lo), float(hi)) for lo, hi in self.kr)
-        br = tuple((float(lo), float(hi)) for lo, hi in self.br)
+        kr, br = _ranges("K_r", self.kr), _ranges("B_r", self.br)
         if not kr or len(kr) != len(br):
             raise ValueError("gain box needs one K_r and one B_r range per joint")
         for name, ranges in (("K_r", kr), ("B_r", br)):
@@ -117,7 +143,7 @@ class GainBox:
         GainBox
             The box with ``n_joints`` copies of each range.
         """
-        return cls((tuple(kr),) * n_joints, (tuple(br),) * n_joints)  # type: ignore[arg-type]
+        return cls((kr,) * n_joints, (br,) * n_joints)
 
     @property
     def n_joints(self) -> int:

@@ -23,6 +23,16 @@ from teleopkit.model.params import TeleoperatorParams, plant_record
 __all__ = ["Question"]
 
 
+def _check_types(params: object, box: object) -> None:
+    """A one-line TypeError for a plant or a gain box of the wrong type, naming it."""
+    for name, value, kind, hint in (
+            ("params", params, TeleoperatorParams, "paper_setup() or a Setup's .params"),
+            ("box", box, GainBox, "GainBox.uniform((K_min, K_max), (B_min, B_max))")):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} must be a {kind.__name__} ({hint}), got "
+                            f"{type(value).__name__}")
+
+
 @dataclass(frozen=True)
 class Question:
     """What a certificate answers.
@@ -44,6 +54,9 @@ class Question:
     ------
     ValueError
         One line naming a box of the wrong size, a stiffness range at 0, or bad delays.
+    TypeError
+        If ``params`` is not a :class:`~teleopkit.model.params.TeleoperatorParams` or ``box`` not
+        a :class:`GainBox`.
     """
 
     params: TeleoperatorParams
@@ -53,6 +66,7 @@ class Question:
     variation: GainVariation | str = "frozen"
 
     def __post_init__(self) -> None:
+        _check_types(self.params, self.box)
         if isinstance(self.variation, str):
             object.__setattr__(self, "variation", parse_gain_variation(self.variation))
         n = self.params.n_joints

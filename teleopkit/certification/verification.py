@@ -15,6 +15,7 @@ a file is used.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
@@ -114,14 +115,15 @@ def verify_certificate(certificate: GainCertificate) -> bool:
     return True
 
 
-def load_certificate(text: str) -> GainCertificate:
+def load_certificate(text: str | os.PathLike[str]) -> GainCertificate:
     """Parse a certificate's JSON and re-check it: the way to read one for use.
 
     Parameters
     ----------
-    text : str
+    text : str or path-like
         JSON as :meth:`~teleopkit.certification.gain_certificate.GainCertificate.to_json`
-        writes it.
+        writes it, or the path of a file holding it
+        (:meth:`~teleopkit.certification.gain_certificate.GainCertificate.from_json`).
 
     Returns
     -------
@@ -131,8 +133,8 @@ def load_certificate(text: str) -> GainCertificate:
     Raises
     ------
     ValueError
-        One line: malformed text, or a certificate that does not check out (edited, or for a
-        plant its record does not match).
+        One line: malformed text, a missing file, or a certificate that does not check out
+        (edited, or for a plant its record does not match).
     """
     certificate = GainCertificate.from_json(text)
     check_certificate(certificate)

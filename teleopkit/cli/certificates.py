@@ -9,9 +9,11 @@ from typing import TYPE_CHECKING
 import click
 
 from teleopkit.cli.options import FiniteFloat, gain_variation, progress, setup_option
+from teleopkit.setup.reading import listed
 
 if TYPE_CHECKING:
     from teleopkit.certification.gain_certificate import GainCertificate
+    from teleopkit.model.params import TeleoperatorParams
     from teleopkit.setup import Setup
     from teleopkit.setup.network import Channel
 
@@ -74,8 +76,8 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
     """
     from teleopkit.certification import best_certificate, certify_all, methods_for
     from teleopkit.certification.gain_sets import GainBox, parse_range
-    from teleopkit.certification.report import certificate_table, plant_text
-    from teleopkit.certification.verification import cover_plants
+    from teleopkit.certification.nuno.scheduled import plants_tank
+    from teleopkit.certification.report import certificate_table
     from teleopkit.model.params import PDGains
 
     tl_min, tl_max = _delay_range("l", tl_min, tl_max, setup.network.forward)
@@ -91,16 +93,9 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
                                  "together, an LMI certificate is one plant's",
                                  param_hint="'--method'")
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"), n)
-    if not as_json:
-        others = (f" (and {len(plants) - 1} other plants, certified with it)"
-                  if len(plants) > 1 else "")
-        others += " (and every plant of its ranges)" if setup.plant_ranges else ""
-        click.echo(f"plant: {plant_text(params)}{others}")
+    if len(plants) > 1 or setup.plant_ranges:  # a tank asked in rad is sized for every plant
+        variation = plants_tank(plants, box, tl_max, tr_max, variation, setup.ranges)
     proven: list[GainCertificate] = []
-    if "lmi" in methods_for(method, variation) and not as_json:
-        click.echo("closed form (instant; the LMI answer follows):")
-        closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)
-        click.echo(_indented(certificate_table(closed, footer=False)))
 
     def improved(certificate: GainCertificate) -> None:
         proven.append(certificate)
@@ -108,12 +103,22 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
             click.echo(f"LMI: proven so far for {certificate.gain_variation} gains at the "
                        f"delay bounds: {_set_text(certificate)} (searching further)")
 
-    try:
+    def solve() -> list[GainCertificate]:
         with progress(show_progress):
-            results = certify_all(params, box, tl_max, tr_max, method, variation,
-                                  tl_min, tr_min, workers=workers, cache=cache,
-                                  on_proven=improved)
-        results = [cover_plants(result, plants, setup.ranges) for result in results]
+            found = certify_all(params, box, tl_max, tr_max, method, variation, tl_min, tr_min,
+                                workers=workers, cache=cache, on_proven=improved)
+        return _covering(found, plants, setup)
+
+    # the closed form alone is instant: its answer (or a refusal) comes before anything printed
+    results = solve() if method == "nuno" else None
+    if not as_json:
+        click.echo(_plant_line(plants, setup))
+    if "lmi" in methods_for(method, variation) and not as_json:
+        click.echo("closed form (instant; the LMI answer follows):")
+        closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)
+        click.echo(_indented(certificate_table(closed, footer=False)))
+    try:
+        results = results if results is not None else solve()
     except KeyboardInterrupt:
         if proven:
             _answer([proven[-1]], as_json, setup,
@@ -122,6 +127,45 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
     best = best_certificate(results)
     _answer(results, as_json, setup)
     return 0 if best.certified else 1
+
+
+def _plant_line(plants: list[TeleoperatorParams], setup: Setup) -> str:
+    """The line naming the plant certified (and that the others are, with it)."""
+    from teleopkit.certification.report import plant_text
+
+    others = f" (and {len(plants) - 1} other plants, certified with it)" if len(plants) > 1 else ""
+    others += " (and every plant of its ranges)" if setup.plant_ranges else ""
+    return f"plant: {plant_text(plants[0])}{others}"
+
+
+def _covering(results: list[GainCertificate], plants: list[TeleoperatorParams],
+              setup: Setup) -> list[GainCertificate]:
+    """The certificates extended to every plant of the setup (the closed form's, one set).
+
+    Refused in one line where the closed form certifies another set for one of the plants,
+    naming it and what to do instead.
+    """
+    from teleopkit.certification.verification import cover_plants
+
+    try:
+        return [cover_plants(result, plants, setup.ranges) for result in results]
+    except ValueError:
+        raise click.BadParameter(
+            f"the closed form certifies another set for {_differing(plants)} than for plant 1, "
+            "so no one certificate covers the plants: write a setup file per plant (its plant "
+            "entry alone) and certify each", param_hint="'--setup'") from None
+
+
+def _differing(plants: list[TeleoperatorParams]) -> str:
+    """The first plant whose local gains differ from the first plant's, and how, in words."""
+    first = plants[0].local_gains
+    for k, plant in enumerate(plants[1:], start=2):
+        changes = [f"{name} {listed(new)} against {listed(old)}" for name, new, old in
+                   (("K_l", plant.local_gains.stiffness, first.stiffness),
+                    ("B_l", plant.local_gains.damping, first.damping)) if new != old]
+        if changes:
+            return f"plant {k} (its local gains {', '.join(changes)})"
+    return "one of the plants"
 
 
 def _delay_range(side: str, low: float | None, high: float | None,

@@ -10,7 +10,9 @@ import click
 from teleopkit.cli.options import (
     FiniteFloat,
     certificate_option,
+    check_covers_setup,
     check_output_dir,
+    check_traces,
     gain_variation,
     read_certificate,
     setup_option,
@@ -65,6 +67,7 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
     check_output_dir(out, "--out")
     chosen = _law_certificate(variation, certificate, setup)
     config = FlexTeleopConfig(setup, chosen, observation="adaptive")
+    check_traces(setup, config.episode_length, "--setup")
     settings = LawSearchConfig(generations=generations, population=population,
                                scenarios=scenarios, harm=harm, seed=seed)
     click.echo(f"searching a gain law under {chosen.gain_variation} for the setup "
@@ -118,11 +121,10 @@ def _law_certificate(variation: object, certificate: Path | None,
     if certificate is not None and variation is not None:
         raise click.BadParameter("give a --certificate or a --gain-variation, not both",
                                  param_hint="'--gain-variation'")
-    network = setup.network
     chosen = (read_certificate(certificate) if certificate is not None else
-              default_certificate(setup.params, network.reached_bounds,
+              default_certificate(setup.params, setup.network.reached_bounds,
                                   variation or COVERING_CLASS,  # type: ignore[arg-type]
                                   setup.plants, setup.ranges))
-    chosen.check(setup.plants, *network.reached_bounds, network.reached_floors)
+    check_covers_setup(chosen, setup, None, "the --certificate")
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen

@@ -24,13 +24,19 @@ if TYPE_CHECKING:
     from teleopkit.certification.gain_classes import GainVariation
     from teleopkit.setup import Setup
 
-__all__ = ["IMAGE_SUFFIXES", "FiniteFloat", "certificate_option", "check_disk", "check_output",
-           "check_output_dir", "delay_spec", "gain_variation", "gains", "load_setup",
-           "progress", "read_certificate", "read_setup", "require_torch", "run_duration",
-           "setup_option", "single_thread"]
+__all__ = ["DELAY_SPECS", "IMAGE_SUFFIXES", "FiniteFloat", "certificate_option",
+           "check_covers_setup", "check_disk", "check_output", "check_output_dir", "check_traces",
+           "delay_spec", "gain_variation", "gains", "load_setup", "progress", "read_certificate",
+           "read_setup", "require_torch", "run_duration", "setup_option", "single_thread"]
 
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".webp")
 """Figure formats the plots can be written in (matplotlib's, by suffix)."""
+
+DELAY_SPECS = ("paper | constant:T | sine:MEAN:AMP:FREQ (FREQ in Hz; the backward channel's "
+               "phase shifted by a quarter period) | switching:LOW:HIGH:DWELL (each DWELL at "
+               "LOW or HIGH, the two channels drawn independently) | csv:PATH (the same trace "
+               "on both channels); times in seconds unless written with a unit (500ms)")
+"""What ``--delay`` takes (:func:`~teleopkit.delays.spec.parse_delay`), for the options' help."""
 
 
 def _bad(option: str, message: str) -> click.BadParameter:
@@ -182,6 +188,86 @@ def delay_spec(ctx: click.Context | None, param: click.Parameter | None,
     except ValueError as error:
         raise _bad("--delay", str(error)) from None
     return value
+
+
+_CERTIFY = ("certify for the setup's delays (teleopkit certify --setup FILE --json) or give a "
+            "--setup whose network stays within them")
+"""What to do about a certificate file whose delay bounds the setup's network exceeds."""
+
+
+def check_traces(setup: Setup, duration: float, option: str) -> None:
+    """Refuse, before any work, a recorded delay trace that ends before the runs do.
+
+    Parameters
+    ----------
+    setup : Setup
+        The setup, its network replaced by a ``--delay`` if one was given
+        (:meth:`~teleopkit.setup.Setup.with_delay`): each ``csv:`` profile of it is checked
+        (:func:`~teleopkit.delays.spec.check_trace_ends`).
+    duration : float
+        The longest run in seconds.
+    option : str
+        The option that gave the network, for the message.
+    """
+    from teleopkit.delays.spec import check_trace_ends, parse_delay
+
+    network = setup.network
+    for spec in dict.fromkeys(network.forward.profiles + network.backward.profiles):
+        if spec.startswith("csv:"):
+            try:
+                check_trace_ends(parse_delay(spec), duration)
+            except ValueError as error:
+                raise _bad(option, str(error)) from None
+
+
+def check_covers_setup(certificate: GainCertificate, setup: Setup, delay: str | None,
+                       whose: str, advice: str = _CERTIFY) -> None:
+    """Refuse a certificate for another plant or for delays the setup's network can exceed.
+
+    :meth:`~teleopkit.certification.gain_certificate.GainCertificate.check`, with its hint on
+    units only for a ``--delay`` number typed without one that looks like milliseconds.
+
+    Parameters
+    ----------
+    certificate : GainCertificate
+        The certificate.
+    setup : Setup
+        The setup, its network replaced by ``delay`` if given.
+    delay : str, optional
+        The ``--delay`` typed (None: the setup's own network).
+    whose : str
+        The certificate in words, such as ``"the policy's certificate"`` (a refusal of the
+        setup's network starts with it).
+    advice : str
+        What to do when the setup's network reaches beyond the certificate's delay bounds
+        (by default: certify for them, or another setup).
+    """
+    from teleopkit.certification.gain_certificate import DelayBoundError
+
+    network = setup.network
+    try:
+        certificate.check(setup.plants, *network.reached_bounds, network.reached_floors,
+                          units_hint=_typed_in_ms(delay))
+    except DelayBoundError as error:
+        if delay is not None:
+            raise _bad("--delay", str(error)) from None
+        raise ValueError(f"{whose} covers {error.direction} delays up to {error.bound:g} s and "
+                         f"the setup's network reaches {error.reach:.6g} s: {advice}") from None
+
+
+def _typed_in_ms(delay: str | None) -> bool:
+    """Whether a typed delay spec holds a delay without a unit above 1 (seconds: meant as ms?)."""
+    kind, _, rest = (delay or "").partition(":")
+    delays = rest.split(":")[:{"constant": 1, "sine": 2, "switching": 2}.get(kind, 0)]
+    return any(_bare_above_one(value) for value in delays)
+
+
+def _bare_above_one(text: str) -> bool:
+    """Whether ``text`` is a plain number (no unit) above 1."""
+    try:
+        return float(text) > 1
+    except ValueError:
+        return False
 
 
 def _probe(directory: Path) -> str | None:

@@ -11,6 +11,7 @@ import click
 from teleopkit.cli.options import (
     FiniteFloat,
     check_output,
+    check_traces,
     gain_variation,
     run_duration,
     setup_option,
@@ -85,8 +86,11 @@ def campaign_command(ctx: click.Context, spec: Path, out: Path, workers: int | N
     client = _client(workers, scheduler)
     check_output(out, "--out", (".parquet", ".csv"))
     loaded = CampaignSpec.from_file(spec)
-    if ctx.get_parameter_source("setup") is not ParameterSource.DEFAULT:
+    given = ctx.get_parameter_source("setup") is not ParameterSource.DEFAULT
+    if given:
         loaded = replace(loaded, setup=setup)
+    if "setup" in map(str, loaded.factor("delay").levels):  # rows that draw the network's delays
+        check_traces(loaded.setup, loaded.duration, "--setup" if given else "SPEC")
     store = ChunkStore(out)
     if not resume and store.has_chunks():
         raise click.UsageError(f"{store.dir} holds chunks of an earlier run: pass --resume to "

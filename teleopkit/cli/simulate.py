@@ -9,6 +9,7 @@ import click
 import numpy as np
 
 from teleopkit.cli.options import (
+    DELAY_SPECS,
     IMAGE_SUFFIXES,
     check_disk,
     check_output,
@@ -40,9 +41,7 @@ _CSV_ROW_BYTES = 27 * 22
 @click.option("--duration", type=float, default=40.0, show_default=True, callback=run_duration,
               help="Seconds (a whole number of 10 ms control periods).")
 @click.option("--delay", default=None, callback=delay_spec,
-              help="paper | constant:T | sine:MEAN:AMP:FREQ | switching:LOW:HIGH:DWELL | "
-                   "csv:PATH; times in seconds unless written with a unit (500ms) [default: "
-                   "the setup's network].")
+              help=f"Delays of both channels: {DELAY_SPECS} [default: the setup's network].")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of what the setup draws: operator motion, delays, start.")
 @click.option("--dt", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DT,

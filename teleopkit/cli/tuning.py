@@ -12,8 +12,11 @@ import click
 from click.core import ParameterSource
 
 from teleopkit.cli.options import (
+    DELAY_SPECS,
     certificate_option,
+    check_covers_setup,
     check_output_dir,
+    check_traces,
     delay_spec,
     gain_variation,
     read_certificate,
@@ -101,8 +104,10 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: 
                                  "choose another directory", param_hint="'--out'")
     check_unlocked(out / LOCK, str(out))  # before anything is printed
     env_config = FlexTeleopConfig(setup, observation=observation)
-    chosen = _training_certificate(out, resume, variation, certificate, env_config)
     settings = _training_config(ctx, out, resume, steps, envs, seed, recipe)
+    check_traces(setup, max(settings.episode_length, settings.validation_length or 0.0),
+                 "--setup")
+    chosen = _training_certificate(out, resume, variation, certificate, env_config)
     per_round = _round_steps(settings)
     if settings.total_steps % per_round:
         rounded = -(-settings.total_steps // per_round) * per_round
@@ -153,15 +158,10 @@ def _training_certificate(out: Path, resume: bool, variation: object,
                                      config.setup.ranges)
     else:
         chosen = read_certificate(out / CERTIFICATE)
-    _check_certificate(chosen, config)
+    whose = "the --certificate" if certificate is not None else "the run's certificate"
+    check_covers_setup(chosen, config.setup, None, whose)
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen
-
-
-def _check_certificate(certificate: GainCertificate, config: FlexTeleopConfig) -> None:
-    """Refuse (one line) a certificate for another plant or delays the setup's can exceed."""
-    network = config.setup.network
-    certificate.check(config.setup.plants, *network.reached_bounds, network.reached_floors)
 
 
 def _round_steps(settings: TrainConfig) -> int:
@@ -254,9 +254,8 @@ class _PolicyFile(click.Path):
 @click.option("--seed", type=click.IntRange(min=0), default=7_777, show_default=True,
               help="Seed of the held-out scenarios (teleopkit.rl.evaluation.EVAL_SEED).")
 @click.option("--delay", default=None, callback=delay_spec,
-              help="Delays of both channels in place of the setup's network: paper | "
-                   "constant:T | sine:MEAN:AMP:FREQ | switching:LO:HI:DWELL | csv:PATH (shapes "
-                   "training never saw).")
+              help=f"Delays of both channels in place of the setup's network, for example "
+                   f"shapes training never saw: {DELAY_SPECS}.")
 @click.option("--duration", type=float, default=40.0, show_default=True, callback=run_duration,
               help="Episode length [s] (a whole number of 10 ms control periods).")
 @click.option("--out", type=click.Path(path_type=Path), default="runs/evaluate",
@@ -296,6 +295,8 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     from teleopkit.rl.policy import GainPolicy
 
     check_output_dir(out, "--out")
+    check_traces(setup if delay is None else setup.with_delay(delay), duration,
+                 "--setup" if delay is None else "--delay")
     policies = []
     for path in policy_files:
         try:
@@ -306,7 +307,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                                      certificate)
     config = evaluation_config(chosen, setup, delay, duration)
     chosen = config.safety_certificate()  # extended to the setup's other plants
-    _check_certificate(chosen, config)
+    check_covers_setup(chosen, config.setup, delay, *_evaluation_advice(certificate))
     policies = [law_under(policy, config) for policy in policies]
 
     def searching() -> None:
@@ -330,6 +331,15 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     unsafe = int(summary["unsafe_actions"].sum())
     click.echo(f"report in {out}; unsafe actions: {unsafe}")
     return 0 if unsafe == 0 else 1
+
+
+def _evaluation_advice(certificate: Path | None) -> tuple[str, str]:
+    """The certificate evaluate runs under in words, and what to do when the network exceeds it."""
+    if certificate is not None:
+        return ("the --certificate", "give a --setup or --delay that stays within it, or a "
+                                     "--certificate for these delays")
+    return ("the policy's certificate", "give a --setup or --delay that stays within it, or a "
+                                        "policy trained for this network")
 
 
 def _policy_name(path: Path) -> str:

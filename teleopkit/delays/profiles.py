@@ -209,7 +209,7 @@ class FourierDelay:
     scale : float or ndarray, shape (B,)
         Per-scenario scale in seconds (the paper draws ``g_m, g_s ~ U[0.5, 1]`` per episode).
     bound : float, optional
-        Declared bound; defaults to ``max(scale)``.
+        Declared bound, at least ``max(scale)`` (a lower one is refused); defaults to it.
     """
 
     scale: float | np.ndarray = 1.0
@@ -220,8 +220,8 @@ class FourierDelay:
         if np.any(scale < 0):
             raise ValueError(f"delay scale must be non-negative, got {scale}")
         object.__setattr__(self, "scale", scale)
-        if math.isnan(self.bound):
-            object.__setattr__(self, "bound", float(scale.max()))
+        object.__setattr__(self, "bound", declared_bound(scale, self.bound))
+        check_delays(type(self).__name__, scale, self.bound)  # the fit reaches up to the scale
 
     @property
     def floor(self) -> float:
@@ -271,7 +271,7 @@ class ConstantDelay:
     value : float or ndarray, shape (B,)
         Delay in seconds.
     bound : float, optional
-        Declared bound; defaults to ``max(value)``.
+        Declared bound, at least ``max(value)`` (a lower one is refused); defaults to it.
     """
 
     value: float | np.ndarray = 0.5
@@ -283,6 +283,7 @@ class ConstantDelay:
             raise ValueError(f"constant delay must be non-negative, got {value}")
         object.__setattr__(self, "value", value)
         object.__setattr__(self, "bound", declared_bound(value, self.bound))
+        check_delays(type(self).__name__, value, self.bound)
 
     @property
     def floor(self) -> float:
@@ -499,7 +500,7 @@ class TraceDelay:
     delays : ndarray, shape (N,)
         Delay at each sample time in seconds.
     bound : float, optional
-        Declared bound; defaults to the trace's maximum.
+        Declared bound, at least the trace's maximum (a lower one is refused); defaults to it.
     """
 
     times: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
@@ -523,6 +524,7 @@ class TraceDelay:
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "delays", delays)
         object.__setattr__(self, "bound", declared_bound(delays, self.bound))
+        check_delays(type(self).__name__, delays, self.bound)  # what interpolation reaches
 
     @property
     def floor(self) -> float:
@@ -555,7 +557,8 @@ class TraceDelay:
         Raises
         ------
         ValueError
-            One line: unreadable file, missing or ambiguous columns, non-numeric values.
+            One line: unreadable file, missing or ambiguous columns, non-numeric values, a
+            delay above ``bound``.
         """
         import pandas as pd
 

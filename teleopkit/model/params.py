@@ -36,18 +36,29 @@ __all__ = [
 ]
 
 
-def _vector(name: str, values: float | Sequence[float], n: int | None = None) -> tuple[float, ...]:
-    """Return ``values`` as a tuple of finite floats, broadcasting a scalar to length ``n``."""
+def _vector(name: str, values: float | Sequence[float],
+            like: tuple[str, tuple[float, ...]] | None = None) -> tuple[float, ...]:
+    """Finite floats, as many as the field ``like = (name, values)`` (a scalar repeated)."""
+    n = len(like[1]) if like is not None else 1
     if np.isscalar(values):
-        values = [float(values)] * (n if n is not None else 1)  # type: ignore[arg-type]
+        values = [float(values)] * n  # type: ignore[arg-type]
     out = tuple(float(v) for v in values)  # type: ignore[union-attr]
     if not out:
         raise ValueError(f"{name} must not be empty")
-    if n is not None and len(out) != n:
-        raise ValueError(f"{name} needs {n} values (one per joint), got {len(out)}")
+    if like is not None and len(out) != n:
+        raise ValueError(f"{like[0]} and {name} need one per joint, got {n} and {len(out)} values")
     if not all(math.isfinite(v) for v in out):
         raise ValueError(f"{name} must be finite, got {out}")
     return out
+
+
+def _joint_fields(owner: Any, labels: Mapping[str, str]) -> int:
+    """Store ``owner``'s per-joint fields (attribute: label) as vectors as long as the first."""
+    like: tuple[str, tuple[float, ...]] | None = None
+    for name, label in labels.items():
+        object.__setattr__(owner, name, values := _vector(label, getattr(owner, name), like))
+        like = like or (label, values)
+    return len(values)
 
 
 def _positive(name: str, values: tuple[float, ...], allow_zero: bool = False) -> None:
@@ -100,9 +111,7 @@ class PlanarArm:
     inertia: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "lengths", _vector("arm lengths", self.lengths))
-        n = len(self.lengths)
-        object.__setattr__(self, "masses", _vector("arm masses", self.masses, n))
+        n = _joint_fields(self, {"lengths": "arm lengths", "masses": "arm masses"})
         _positive("arm lengths", self.lengths)
         _positive("arm masses", self.masses)
         self._canonical("com", self.lengths)
@@ -116,7 +125,7 @@ class PlanarArm:
         """Check the optional field ``name``; store None when it equals its ``default``."""
         values = getattr(self, name)
         if values is not None:
-            values = _vector(f"arm {name}", values, self.n_joints)
+            values = _vector(f"arm {name}", values, ("arm lengths", self.lengths))
             _positive(f"arm {name}", values, allow_zero=True)
             object.__setattr__(self, name, None if values == default else values)
 
@@ -152,10 +161,7 @@ class ElasticJoints:
     rotor_inertia: tuple[float, ...] = (0.3, 0.3)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "stiffness", _vector("joint stiffness", self.stiffness))
-        n = len(self.stiffness)
-        inertia = _vector("rotor inertia", self.rotor_inertia, n)
-        object.__setattr__(self, "rotor_inertia", inertia)
+        _joint_fields(self, {"stiffness": "joint stiffness", "rotor_inertia": "rotor inertia"})
         _positive("joint stiffness", self.stiffness)
         _positive("rotor inertia", self.rotor_inertia)
 
@@ -176,9 +182,7 @@ class PDGains:
     damping: tuple[float, ...] = (10.0, 10.0)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "stiffness", _vector("proportional gain", self.stiffness))
-        n = len(self.stiffness)
-        object.__setattr__(self, "damping", _vector("damping gain", self.damping, n))
+        _joint_fields(self, {"stiffness": "proportional gain", "damping": "damping gain"})
         _positive("proportional gain", self.stiffness, allow_zero=True)
         _positive("damping gain", self.damping, allow_zero=True)
 
@@ -238,9 +242,8 @@ class Operator:
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f"operator {name} must be finite and non-negative, got {value}")
-        n = len(_vector("operator amplitudes", self.amplitudes))
-        for name in ("amplitudes", "frequencies", "phases", "decays"):
-            object.__setattr__(self, name, _vector(f"operator {name}", getattr(self, name), n))
+        _joint_fields(self, {name: f"operator {name}"
+                             for name in ("amplitudes", "frequencies", "phases", "decays")})
 
     def reference(self, t: np.ndarray, gains: np.ndarray) -> np.ndarray:
         """Evaluate the reference motion.
@@ -318,10 +321,7 @@ class InitialState:
     motor: tuple[float, ...] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
-        n = len(_vector("initial local position", self.local))
-        for name in ("local", "remote", "motor"):
-            object.__setattr__(self, name, _vector(f"initial {name} position",
-                                                   getattr(self, name), n))
+        _joint_fields(self, {n: f"initial {n} position" for n in ("local", "remote", "motor")})
 
 
 @dataclass(frozen=True)
@@ -372,7 +372,7 @@ class TeleoperatorParams:
         }
         for name, size in sizes.items():
             if size != n:
-                raise ValueError(f"{name} has {size} joints but the local arm has {n}")
+                raise ValueError(f"{name} has {size} joint{'s' * (size != 1)}, the local arm {n}")
         if isinstance(self.environment, Wall) and len(self.environment.position) != n:
             raise ValueError(f"wall needs {n} positions, got {len(self.environment.position)}")
         if self.environment != "free" and not isinstance(self.environment, Wall):

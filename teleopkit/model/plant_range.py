@@ -29,7 +29,7 @@ from teleopkit.model.params import (
     plant_record,
 )
 
-__all__ = ["RANGED", "PlantRange", "value_of"]
+__all__ = ["RANGED", "PlantRange", "value_of", "with_values"]
 
 RANGED = ("remote_arm.lengths", "remote_arm.masses", "remote_arm.com", "remote_arm.inertia",
           "joints.stiffness", "joints.rotor_inertia")
@@ -57,9 +57,22 @@ def value_of(params: TeleoperatorParams, name: str) -> tuple[float, ...] | None:
     return getattr(getattr(params, part), key)
 
 
-def _with(params: TeleoperatorParams, values: Mapping[str, tuple[float, ...]]
-          ) -> TeleoperatorParams:
-    """``params`` with the named per-joint values replaced."""
+def with_values(params: TeleoperatorParams, values: Mapping[str, tuple[float, ...]]
+                ) -> TeleoperatorParams:
+    """``params`` with the named per-joint values replaced.
+
+    Parameters
+    ----------
+    params : TeleoperatorParams
+        A plant.
+    values : mapping of str to tuple of float
+        ``name -> per-joint values`` for names of :data:`RANGED`.
+
+    Returns
+    -------
+    TeleoperatorParams
+        The plant with those values.
+    """
     parts: dict[str, dict[str, tuple[float, ...]]] = {}
     for name, value in values.items():
         part, key = name.split(".")
@@ -125,8 +138,9 @@ class PlantRange:
         TeleoperatorParams
             The nominal plant.
         """
-        return _with(params, {name: tuple((lo + h) / 2 for lo, h in zip(*interval, strict=True))
-                              for name, interval in self.bounds.items()})
+        middles = {name: tuple((lo + h) / 2 for lo, h in zip(low, high, strict=True))
+                   for name, (low, high) in self.bounds.items()}
+        return with_values(params, middles)
 
     def corners(self, params: TeleoperatorParams) -> tuple[TeleoperatorParams, TeleoperatorParams]:
         """``params`` with every ranged value at its lower end, and at its upper end.
@@ -141,8 +155,8 @@ class PlantRange:
         tuple of TeleoperatorParams
             The lowest and the highest plant.
         """
-        return (_with(params, {name: low for name, (low, _) in self.bounds.items()}),
-                _with(params, {name: high for name, (_, high) in self.bounds.items()}))
+        return (with_values(params, {name: low for name, (low, _) in self.bounds.items()}),
+                with_values(params, {name: high for name, (_, high) in self.bounds.items()}))
 
     def draw(self, params: TeleoperatorParams, rng: np.random.Generator | int,
              count: int) -> list[TeleoperatorParams]:
@@ -165,7 +179,7 @@ class PlantRange:
         rng = np.random.default_rng(rng)
         draws = {name: rng.uniform(low, high, size=(count, len(low)))
                  for name, (low, high) in self.bounds.items()}
-        return [_with(params, {name: tuple(values[k]) for name, values in draws.items()})
+        return [with_values(params, {name: tuple(values[k]) for name, values in draws.items()})
                 for k in range(count)]
 
     def covers(self, nominal: TeleoperatorParams | Mapping[str, Any],
@@ -213,7 +227,7 @@ class PlantRange:
         else:
             record, fixed = nominal, plant_params(nominal)
         # the ranged values set to the nominal's, the rest as they are: the nominal plant
-        return plant_mismatch(record, _with(params, {name: value_of(fixed, name)
+        return plant_mismatch(record, with_values(params, {name: value_of(fixed, name)
                                                      for name in self.bounds}))
 
     def to_record(self) -> dict[str, dict[str, list[float]]]:

@@ -216,6 +216,14 @@ def _gains(values: np.ndarray) -> str:
             f"B_r = ({', '.join(f'{v:.3g}' for v in values[n:])})")
 
 
+def _tuner_words(tuner: str, policies: int) -> str:
+    """What the tuner's row is, by its label (:func:`tuner_label`): a searched law or trained."""
+    if tuner.startswith("gain law"):
+        return (f"the gain law searched by CMA-ES ({policies} "
+                f"law{'' if policies == 1 else 's'})")
+    return f"the trained tuner ({policies} polic{'y' if policies == 1 else 'ies'})"
+
+
 def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: str,
                     tuner: str, policies: int = 1, duration: float = 40.0,
                     others: Mapping[str, str] | None = None, setup: Setup | None = None) -> str:
@@ -230,9 +238,10 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
     delay : str
         Delay profiles of the scenarios.
     tuner : str
-        Name of the tuner's row.
+        Name of the tuner's row (:func:`tuner_label`): a row named ``"gain law (...)"`` is
+        described as a gain law searched by CMA-ES, any other as a trained tuner.
     policies : int
-        Policies (training seeds) behind the tuner's row.
+        Policies (training or search seeds) behind the tuner's row.
     duration : float
         Episode length in seconds.
     others : mapping of str to str, optional
@@ -252,7 +261,7 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
         "training or search used, draws what the setup leaves random: operator motions, "
         f"delays, starts; delays: {delay}), {duration:g} s each, "
         f"every applied gain projected by the safety layer of the row's certificate. `{tuner}` "
-        f"is the trained tuner ({policies} polic{'y' if policies == 1 else 'ies'}); "
+        f"is {_tuner_words(tuner, policies)}; "
         f"`{REFERENCE}` the best constant gains of the frozen class on the certificate's box "
         f"({_gains(comparators.frozen_static)}), the reference of the last column; "
         f"`fixed` the paper's gains (K_r = 10, B_r = 30).",

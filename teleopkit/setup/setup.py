@@ -283,6 +283,8 @@ class Setup:
             Scenarios drawn from it equal :func:`~teleopkit.sim.scenarios.paper_scenarios` of
             ``params`` when the network is the paper's.
         """
+        if not isinstance(params, TeleoperatorParams):
+            raise TypeError(f"params must be a TeleoperatorParams, got {type(params).__name__}")
         operator = OperatorSetup(params.operator.stiffness, params.operator.damping,
                                  MotionSpec.paper(params.operator))
         return cls(params, network or Network(), operator, StartSpec.fixed(params.initial))
@@ -463,7 +465,7 @@ class Setup:
         Parameters
         ----------
         rng : numpy.random.Generator or int
-            Generator or seed.
+            Generator or seed (a non-negative integer).
         batch : int
             Scenarios.
         delay : str, float or (DelayProfile, DelayProfile), optional
@@ -477,11 +479,11 @@ class Setup:
             :func:`~teleopkit.sim.scenarios.paper_scenarios`).
         """
         from teleopkit.delays.spec import delay_pair
-        from teleopkit.sim.scenarios import Scenario
+        from teleopkit.sim.scenarios import Scenario, generator
 
         if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
             raise ValueError(f"batch must be a whole number of scenarios >= 1, got {batch!r}")
-        rng = np.random.default_rng(rng)
+        rng = generator(rng)
         gains, motion = self.operator.motion.draw(rng, batch, self.n_joints)
         forward, backward = (self.network.draw(rng, batch) if delay is None
                              else delay_pair(delay, rng))

@@ -20,8 +20,8 @@ from teleopkit.delays.profiles import ConstantDelay, DelayProfile, FourierDelay
 from teleopkit.model.params import TeleoperatorParams, paper_setup
 from teleopkit.sim.motions import Motion, SineMotion
 
-__all__ = ["PAPER_DELAY_BOUND", "PAPER_DELAY_FLOOR", "PAPER_SCALES", "Scenario", "paper_scenarios",
-           "sample_reference_gains"]
+__all__ = ["PAPER_DELAY_BOUND", "PAPER_DELAY_FLOOR", "PAPER_SCALES", "Scenario", "generator",
+           "paper_scenarios", "sample_reference_gains"]
 
 PAPER_SCALES = (0.5, 1.0)
 """Range of the per-episode delay scales ``g_m, g_s`` of :func:`paper_scenarios`."""
@@ -274,6 +274,36 @@ def sample_reference_gains(rng: np.random.Generator, batch: int, n_joints: int =
     return np.where(rng.random((batch, n_joints)) < 0.5, -magnitude, magnitude)
 
 
+def generator(seed: np.random.Generator | int) -> np.random.Generator:
+    """``seed`` if it is a generator, else one seeded by it.
+
+    Parameters
+    ----------
+    seed : numpy.random.Generator or int
+        A generator, or a non-negative integer.
+
+    Returns
+    -------
+    numpy.random.Generator
+        The generator.
+
+    Raises
+    ------
+    TypeError
+        If ``seed`` is neither (a bool is not a seed).
+    ValueError
+        If it is a negative integer.
+    """
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise TypeError(f"seed must be a non-negative integer or a numpy Generator, got "
+                        f"{type(seed).__name__}")
+    if seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed}")
+    return np.random.default_rng(seed)
+
+
 def paper_scenarios(rng: np.random.Generator | int = 0, batch: int = 1,
                     params: TeleoperatorParams | None = None) -> Scenario:
     """Draw ``batch`` scenarios with the paper's randomisation.
@@ -300,7 +330,7 @@ def paper_scenarios(rng: np.random.Generator | int = 0, batch: int = 1,
     """
     if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
         raise ValueError(f"batch must be a whole number of scenarios >= 1, got {batch!r}")
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     params = params if params is not None else paper_setup()
     reference = sample_reference_gains(rng, batch, params.n_joints)
     scales = rng.uniform(*PAPER_SCALES, size=(2, batch))

@@ -61,7 +61,7 @@ class _Factored(Protocol):
     def factors(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
-def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
+def check_gains(gains: np.ndarray, n_joints: int, batch: int | None = None) -> np.ndarray:
     """Validate remote gains ``[K_r, B_r]`` (finite, non-negative, last axis ``2 n``).
 
     Parameters
@@ -70,6 +70,9 @@ def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
         Gains to check.
     n_joints : int
         Number of joints.
+    batch : int, optional
+        Scenarios ``B`` the gains are for: then their shape must be ``(2 n,)``, ``(B, 2 n)`` or
+        ``(P, B, 2 n)`` (``1`` in place of ``B`` is shared by the batch).
 
     Returns
     -------
@@ -77,9 +80,13 @@ def check_gains(gains: np.ndarray, n_joints: int) -> np.ndarray:
         The gains as a float array.
     """
     gains = np.asarray(gains, dtype=float)
-    if gains.shape[-1:] != (2 * n_joints,):
-        raise ValueError(f"remote gains need {2 * n_joints} values [K_r..., B_r...] on the last "
+    width = 2 * n_joints
+    if gains.shape[-1:] != (width,):
+        raise ValueError(f"remote gains need {width} values [K_r..., B_r...] on the last "
                          f"axis, got shape {gains.shape}")
+    if batch is not None and (gains.ndim > 3 or gains.shape[-2:-1] not in ((), (1,), (batch,))):
+        raise ValueError(f"remote gains need shape ({width},), (B, {width}) or (periods, B, "
+                         f"{width}) with B = {batch} scenarios (or 1), got {gains.shape}")
     # min and max propagate NaN: one test each covers NaN, inf and negative values
     if gains.size and not (gains.min() >= 0 and gains.max() < math.inf):
         raise ValueError("remote gains must be finite and non-negative")
@@ -119,6 +126,9 @@ class Simulator:
 
     def __init__(self, scenario: Scenario, dt: float = DEFAULT_DT,
                  control_period: float = CONTROL_PERIOD, backend: BackendName = "compiled") -> None:
+        if not isinstance(scenario, Scenario):
+            raise TypeError(f"scenario must be a Scenario (paper_scenarios(seed, batch) or "
+                            f"Setup.scenarios(seed, batch)), got {type(scenario).__name__}")
         self.substeps = substeps(control_period, dt)
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"backend must be 'compiled' or 'numpy', got {backend!r}")
@@ -142,8 +152,8 @@ class Simulator:
         self.reset()
 
     def _checked(self, gains: np.ndarray) -> np.ndarray:
-        """:func:`check_gains`, and motor damping the step integrates stably."""
-        gains = check_gains(gains, self.n_joints)
+        """:func:`check_gains` for the batch, and motor damping the step integrates stably."""
+        gains = check_gains(gains, self.n_joints, self.batch)
         if gains.size:
             check_motor_damping(self._lightest_rotors, self.dt, gains[..., self.n_joints:].max(),
                                 "remote damping B_r", self.control_period)
@@ -458,6 +468,9 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
         On bad input, including delays as long as the run (a number meant in milliseconds), a
         delay trace or a recorded operator motion that ends before the run does, and a step the
         model's damping or springs (a stiff wall) make unstable (:mod:`teleopkit.sim.stability`).
+    TypeError
+        If ``setup`` is not a :class:`~teleopkit.setup.Setup`, ``params`` not a
+        :class:`~teleopkit.model.params.TeleoperatorParams` or the seed not an integer.
 
     Warns
     -----
@@ -471,6 +484,9 @@ def simulate_trajectory(gains: tuple[float, float] | np.ndarray | None = None,
 
     if params is not None and setup is not None:
         raise ValueError("give params or setup, not both")
+    if setup is not None and not isinstance(setup, Setup):
+        raise TypeError(f"setup must be a Setup (Setup.paper() or Setup.from_file(path)), got "
+                        f"{type(setup).__name__}")
     setup = setup if setup is not None else (
         Setup.from_params(params) if params is not None else Setup.paper())
     scenario = setup.scenarios(seed, 1, delay)
@@ -509,6 +525,8 @@ def simulate(gains: tuple[float, float] | np.ndarray | None = None, duration: fl
     Raises
     ------
     ValueError
+        As :func:`simulate_trajectory`.
+    TypeError
         As :func:`simulate_trajectory`.
 
     Warns

@@ -189,7 +189,8 @@ def check_step(params: TeleoperatorParams, dt: float,
             f"dt = {dt * 1e3:.4g} ms is beyond the integrator's stability limit for this model: "
             f"the local arm's damping reaches {rate:.4g} 1/s, so dt must be at most "
             f"{REAL_STABILITY_LIMIT / rate * 1e3:.4g} ms; dt = {step * 1e3:.4g} ms "
-            f"({round(control_period / step)} steps per control period) also keeps its accuracy")
+            f"({round(control_period / step)} steps per control period) also keeps its accuracy "
+            f"({_typed(step)})")
     mode = local_mode(params)
     if not _integrates(mode, dt):
         springs = ", ".join(f"{v:g}" for v in params.local_gains.stiffness)
@@ -336,7 +337,18 @@ def _beyond(params: TeleoperatorParams, what: str, mode: complex, dt: float,
     return (f"{what} beyond what dt = {dt * 1e3:.4g} ms integrates stably: a mode of "
             f"{abs(mode):.4g} rad/s needs dt at most {longest * 1e3:.4g} ms; dt = "
             f"{step * 1e3:.4g} ms ({round(control_period / step)} steps per control period) "
-            f"integrates it stably{keep}")
+            f"integrates it stably ({_typed(step)}){keep}")
+
+
+def _typed(step: float) -> str:
+    """``step`` as an option that can be typed back: ``--dt`` and the seconds to 15 digits.
+
+    :func:`~teleopkit.sim.timing.substeps` accepts that as a divisor of the control period; the
+    four digits of the figure in ms are too few for its tolerance, 1e-9 of the period.
+    """
+    digits = np.format_float_positional(step, precision=15, unique=False, fractional=False,
+                                        trim="-")
+    return f"--dt {digits}"
 
 
 def _floored(value: float) -> float:
@@ -400,4 +412,5 @@ def check_motor_damping(params: TeleoperatorParams, dt: float, damping: float,
         step = _dividing(control_period, min(accurate, accurate_step(params, control_period)))
         raise ValueError(f"{name} = {damping:.4g} is beyond what dt = {dt * 1e3:.4g} ms integrates "
                          f"stably on its motor (at most {largest:.4g}); dt = {step * 1e3:.4g} ms "
-                         f"integrates it stably and accurately")
+                         f"integrates it stably and accurately ({_typed(step)}, "
+                         f"{round(control_period / step)} steps per control period)")

@@ -8,6 +8,7 @@ negative answer, written all the same.
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 
@@ -40,8 +41,10 @@ def setup_file(folder, name: str, plant: dict | None = None, **entries: object) 
 
 
 def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1, lines
+    """The one line on standard error, nothing having gone to standard output."""
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and not out, (lines, out)
     return lines[0]
 
 
@@ -133,3 +136,83 @@ def test_campaign_and_evaluate_refuse_it_too(tmp_path, capsys, command):
         "the recorded operator motion ends at 1.5 s, before the 2 s run does: record a longer "
         "motion or shorten the run")
     assert not (tmp_path / "o.csv").exists() and not (tmp_path / "report").exists()
+
+
+STIFF = {"wall": {"environment": {"wall": [0.5, math.inf], "stiffness": 1.0e6, "damping": 5}},
+         "joints": {"joints": {"stiffness": [1.0e6, 1.0e6], "rotor_inertia": [0.3, 0.3]}},
+         "rotor": {"joints": {"stiffness": [100.0, 100.0], "rotor_inertia": [0.01, 0.01]}},
+         "damping": {"local_gains": {"stiffness": [25.0, 25.0], "damping": [40.0, 40.0]}}}
+
+
+@pytest.mark.parametrize("model", list(STIFF))
+def test_the_step_a_stability_error_proposes_is_accepted_as_printed(tmp_path, capsys, model):
+    """The trial's hard wall (and a stiff joint, a light rotor, a strong local damping): the
+    message's 0.4167 ms is no divisor of the control period to 1e-9, so it prints the step in
+    full, and passed back as printed it is taken and runs."""
+    setup = setup_file(tmp_path, f"{model}.yaml", STIFF[model], start=TRIAL_START)
+    run = ["simulate", "--setup", setup, "--kr", "5", "--br", "30", "--duration", "0.1",
+           "--delay", "constant:0.02", "--out", str(tmp_path / "x.csv")]
+    assert main(run) == 2
+    message = one_error_line(capsys)
+    assert "stab" in message
+    step = re.search(r"\(--dt (\d\.\d+)[,)]", message)[1]
+    assert main([*run, "--dt", step]) == 0, capsys.readouterr().err
+    steps = re.search(r"(\d+) steps per control period", message)[1]
+    assert float(step) == pytest.approx(0.01 / int(steps), rel=1e-14)
+
+
+def short_trace(folder, end: float) -> str:
+    """A delay trace (time, delay in seconds) that ends at ``end`` s; its file's name."""
+    t = np.arange(0.0, end + 1e-9, 0.01)
+    pd.DataFrame({"t": t, "delay": 0.2 + 0.05 * np.sin(t)}).to_csv(folder / "short.csv",
+                                                                    index=False)
+    return "short.csv"
+
+
+def test_evaluate_refuses_a_short_delay_trace_before_the_comparators(tmp_path, capsys,
+                                                                     monkeypatch):
+    """The trial's trace ending at 1.95 s was refused only after the comparator search."""
+    from teleopkit.rl import comparison
+
+    monkeypatch.setattr(comparison, "comparators_for", _searched)
+    code = main(["evaluate", "--policy", "covered", "--scenarios", "2", "--duration", "5",
+                 "--delay", f"csv:{tmp_path / short_trace(tmp_path, 1.95)}", "--out",
+                 str(tmp_path / "report")])
+    assert code == 2
+    assert one_error_line(capsys) == (
+        "teleopkit: error: Invalid value for '--delay': the delay trace ends at 1.95 s, before "
+        "the 5 s run does: record a longer trace or shorten the run")
+    assert not (tmp_path / "report").exists()
+
+
+def _searched(*args: object, **kwargs: object) -> None:
+    raise AssertionError("the work started before the delay trace was checked")
+
+
+@pytest.mark.parametrize("command", ["train", "search-law", "campaign", "evaluate"])
+def test_a_setup_network_trace_shorter_than_the_runs_is_refused_before_any_work(
+        tmp_path, capsys, monkeypatch, command):
+    """A setup whose network plays a 5 s trace: every command running longer refuses it first
+    (train and search-law ran it, holding its last delay, or failed after the first round)."""
+    from teleopkit.rl import comparison, law_search, training
+    from teleopkit.robustness import campaign
+
+    for module, name in ((training, "train"), (law_search, "law_start"),
+                         (campaign, "run_campaign"), (comparison, "comparators_for")):
+        monkeypatch.setattr(module, name, _searched)
+    channel = {"min": 0.0, "max": 0.6, "profile": f"csv:{short_trace(tmp_path, 5.0)}"}
+    setup = setup_file(tmp_path, "net.yaml", network={"forward": channel, "backward": channel})
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("duration: 10\nfactors: {kr: [10], delay: [setup]}\n")
+    out = tmp_path / "out"
+    args = {"train": ["--steps", "100", "--envs", "2", "--out", str(out)],
+            "search-law": ["--generations", "1", "--population", "2", "--out", str(out)],
+            "campaign": [str(spec), "--out", str(tmp_path / "o.csv"), "--scheduler",
+                         "synchronous"],
+            "evaluate": ["--policy", "covered", "--duration", "10", "--out", str(out)]}[command]
+    assert main([command, *args, "--setup", setup]) == 2
+    run = {"campaign": 10, "evaluate": 10}.get(command, 40)
+    assert one_error_line(capsys) == (
+        f"teleopkit: error: Invalid value for '--setup': the delay trace ends at 5 s, before the "
+        f"{run} s run does: record a longer trace or shorten the run")
+    assert not out.exists() and not (tmp_path / "o.csv").exists()

@@ -296,3 +296,40 @@ def test_the_getting_started_page_shows_what_certify_prints():
     done = teleopkit("certify", "--kr", "5:10", "--br", "30:60")
     assert done.returncode == 0
     assert "\n".join(shown).strip("\n") == done.stdout.strip("\n")
+
+
+def test_certify_refuses_plants_it_cannot_certify_together_before_printing(tmp_path, capsys):
+    """The trial's fleet: plant 2 has B_l = 5; the plant line went out before the refusal,
+    which did not say how to certify one plant. A file per plant does."""
+    import yaml
+
+    from teleopkit.cli import main
+    from teleopkit.setup import paper_setup_path
+
+    data = yaml.safe_load(paper_setup_path().read_text())
+    other = {**data["plant"], "local_gains": {"stiffness": [25.0, 25.0], "damping": [5.0, 5.0]}}
+    files = {name: tmp_path / f"{name}.yaml" for name in ("fleet", "plant2")}
+    files["fleet"].write_text(yaml.safe_dump({**data, "plant": [data["plant"], other]}))
+    files["plant2"].write_text(yaml.safe_dump({**data, "plant": other}))
+    box = ["--kr", "1:20", "--br", "10:100"]
+    assert main(["certify", "--setup", str(files["fleet"]), *box]) == 2
+    assert capsys.readouterr() == ("", (
+        "teleopkit: error: Invalid value for '--setup': the closed form certifies another set "
+        "for plant 2 (its local gains B_l [5, 5] against [10, 10]) than for plant 1, so no one "
+        "certificate covers the plants: write a setup file per plant (its plant entry alone) "
+        "and certify each\n"))
+    assert main(["certify", "--setup", str(files["plant2"]), *box]) in (0, 1)
+    assert capsys.readouterr().out.startswith("plant: ")
+
+
+@pytest.mark.parametrize("command", ["simulate", "evaluate"])
+def test_the_delay_help_says_what_each_shape_does_to_the_two_channels(capsys, command):
+    from teleopkit.cli import main
+
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for words in ("sine:MEAN:AMP:FREQ (FREQ in Hz; the backward channel's phase shifted by a "
+                  "quarter period)", "switching:LOW:HIGH:DWELL (each DWELL at LOW or HIGH, the "
+                  "two channels drawn independently)", "csv:PATH (the same trace on both "
+                  "channels)"):
+        assert words in text

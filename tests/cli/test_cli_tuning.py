@@ -286,3 +286,63 @@ def test_evaluate_runs_a_law_beside_a_td3_tuner_each_with_its_own_observation(po
                                    expected["cost"], rtol=1e-12)
     assert "`gain law (frozen)`: another tuner given with --policy (1 policy)" in \
         (tmp_path / "ev" / "summary.md").read_text()
+
+
+def narrow_covered(tmp_path) -> tuple[str, str]:
+    """The covered tuner as if trained on a network of at most 0.6 s, and that certificate."""
+    import copy
+
+    from teleopkit.rl.policy import GainPolicy, resolve_policy
+
+    narrow = default_certificate(paper_setup(), (0.6, 0.6), "tank:3")
+    policy = copy.copy(GainPolicy.load(resolve_policy("covered")))
+    policy.metadata = {**policy.metadata, "certificate": narrow.to_dict()}
+    paths = tmp_path / "narrow.npz", tmp_path / "narrow.json"
+    policy.save(paths[0])
+    paths[1].write_text(narrow.to_json())
+    return str(paths[0]), str(paths[1])
+
+
+NARROW = "the forward delay can reach {} s, beyond the certificate's bound 0.6 s"
+IN_MS = " (delays in seconds: a value in milliseconds needs the ms unit)"
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    ([], "the policy's certificate covers forward delays up to 0.6 s and the setup's network "
+         "reaches 1 s: give a --setup or --delay that stays within it, or a policy trained for "
+         "this network"),
+    (["--certificate", "CERTIFICATE"],
+     "the --certificate covers forward delays up to 0.6 s and the setup's network reaches 1 s: "
+     "give a --setup or --delay that stays within it, or a --certificate for these delays"),
+    (["--delay", "constant:0.8"], "Invalid value for '--delay': " + NARROW.format(0.8)),
+    (["--delay", "sine:700ms:100ms:0.5"], "Invalid value for '--delay': " + NARROW.format(0.8)),
+    (["--delay", "constant:800ms"], "Invalid value for '--delay': " + NARROW.format(0.8)),
+    (["--delay", "paper"], "Invalid value for '--delay': " + NARROW.format(1)),
+    (["--delay", "constant:800"], "Invalid value for '--delay': " + NARROW.format(800) + IN_MS),
+    (["--delay", "switching:0:300:1"],
+     "Invalid value for '--delay': " + NARROW.format(300) + IN_MS),
+])
+def test_evaluate_hints_at_milliseconds_only_for_a_typed_bare_delay(tmp_path, capsys, args,
+                                                                    message):
+    """The trial: a policy certified to 0.6 s on the paper's network (1 s), no delay typed,
+    was told that a value in milliseconds needs the ms unit."""
+    policy, certificate = narrow_covered(tmp_path)
+    args = [certificate if a == "CERTIFICATE" else a for a in args]
+    code = main(["evaluate", "--policy", policy, "--scenarios", "2", "--duration", "1", *args,
+                 "--out", str(tmp_path / "ev")])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err == f"teleopkit: error: {message}\n"
+    assert not (tmp_path / "ev").exists()
+
+
+@pytest.mark.parametrize("command", ["train", "search-law"])
+def test_a_certificate_file_short_of_the_network_says_so_without_units(tmp_path, capsys,
+                                                                       command):
+    certificate = narrow_covered(tmp_path)[1]
+    code = main([command, "--certificate", certificate, "--out", str(tmp_path / "run")])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err == (
+        "teleopkit: error: the --certificate covers forward delays up to 0.6 s and the setup's "
+        "network reaches 1 s: certify for the setup's delays (teleopkit certify --setup FILE "
+        "--json) or give a --setup whose network stays within them\n")
+    assert not (tmp_path / "run").exists()

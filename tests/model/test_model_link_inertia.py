@@ -137,11 +137,11 @@ def test_properties_are_always_tuples():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"com": (0.1, 0.2, 0.3)}, r"^arm com needs 2 values \(one per joint\), got 3$"),
+    ({"com": (0.1, 0.2, 0.3)}, "^arm lengths and arm com need one per joint, got 2 and 3 values$"),
     ({"com": (0.1, -0.2)}, "^arm com must be non-negative"),
     ({"com": (0.1, math.nan)}, "^arm com must be finite"),
     ({"com": (0.1, math.inf)}, "^arm com must be finite"),
-    ({"inertia": (0.01,)}, r"^arm inertia needs 2 values \(one per joint\), got 1$"),
+    ({"inertia": (0.01,)}, "^arm lengths and arm inertia need one per joint, got 2 and 1 values$"),
     ({"inertia": (0.01, -1e-3)}, "^arm inertia must be non-negative"),
     ({"inertia": (math.nan, 0.0)}, "^arm inertia must be finite"),
     ({"com": (0.2, 0.0)}, r"^arm com or inertia must be positive on every link, links \[2\]"),

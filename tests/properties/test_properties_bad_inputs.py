@@ -175,8 +175,9 @@ CLI_CASES = [
      "the certificate is for K_l = [1.0, 1.0], the plant has [25.0, 25.0]"),
     (["train", "--certificate", "{tmp}/short.json", "--out", "{tmp}/r"],
      certificate_file("short.json", "--tl-max", "0.05"),
-     "the forward delay can reach 1 s, beyond the certificate's bound 0.05 s (delays in "
-     "seconds: a value in milliseconds needs the ms unit)"),
+     "the --certificate covers forward delays up to 0.05 s and the setup's network reaches 1 s: "
+     "certify for the setup's delays (teleopkit certify --setup FILE --json) or give a --setup "
+     "whose network stays within them"),
     (["train", "--certificate", "{tmp}/t.json", "--out", "{tmp}/r"], tampered,
      "Invalid value for '--certificate': {tmp}/t.json: the certificate's gain polytope is not "
      "the one its plant, box and delay bounds give (edited?)"),

@@ -115,3 +115,27 @@ def test_policies_share_a_row_only_when_they_are_one_kind_with_one_observation()
     rows = tuner_rows([seeds[0], law, seeds[1], adaptive], "tank:3")
     assert rows == {"TD3 (tank:3, paper)": seeds, "gain law (tank:3)": [law],
                     "TD3 (tank:3, adaptive)": [adaptive]}
+
+
+def test_the_report_names_a_searched_law_so_and_a_td3_tuner_trained():
+    """A gain law is searched by CMA-ES, not trained: summary.md says which the tuner is."""
+    from teleopkit.rl.comparison import report_preamble, tuner_label
+    from teleopkit.rl.policy import GainPolicy
+
+    def made(law: bool) -> GainPolicy:
+        return GainPolicy([(np.zeros((4, 3)), np.zeros(4))], np.zeros(3), np.ones(3),
+                          np.ones(4), np.ones(4), {"law_search": {}} if law else {})
+
+    comparators = Comparators("tank:3", "any", np.array([3.4, 7.4, 8.6, 18.5]),
+                              np.array([3.0, 3.0, 7.5, 7.5]), (3.0, 1.0, 40.0), None)
+
+    def opening(policy: GainPolicy, policies: int) -> str:
+        return report_preamble(comparators, 2, 5, "paper", tuner_label(policy, "tank:3"),
+                               policies)
+
+    law = opening(made(True), 1)
+    assert "`gain law (tank:3)` is the gain law searched by CMA-ES (1 law);" in law
+    assert "trained tuner" not in law
+    assert "searched by CMA-ES (3 laws)" in opening(made(True), 3)
+    assert "`TD3 (tank:3)` is the trained tuner (1 policy);" in opening(made(False), 1)
+    assert "the trained tuner (2 policies)" in opening(made(False), 2)

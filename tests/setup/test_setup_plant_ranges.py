@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from teleopkit.certification.certifier import default_certificate
+from teleopkit.certification.nuno.guarantee import storage_guarantee
 from teleopkit.certification.verification import cover_plants, load_certificate
 from teleopkit.model.params import Wall
 from teleopkit.model.plant_range import PlantRange, value_of
@@ -211,3 +212,22 @@ def test_the_command_line_certifies_and_simulates_a_ranged_setup(setup, tmp_path
     assert f"plant {k + 1} of 2" in simulated.stdout
     for name in setup.ranges[k].bounds:
         assert f"{value_of(drawn, name)[0]:.6g}" in simulated.stdout
+
+
+def test_the_command_line_states_a_guarantee_that_holds_over_the_ranges(setup, tmp_path):
+    """``certify --setup`` with a tank asked in rad: sized on the worst plant of the setup."""
+    path = tmp_path / "ranges.yaml"
+    path.write_text(RANGED)
+    answer = subprocess.run([sys.executable, "-m", "teleopkit.cli", "certify", "--setup",
+                             str(path), "--kr", "1:3", "--br", "10:40", "--gain-variation",
+                             "tank:2rad", "--json"], capture_output=True, text=True, check=False)
+    assert answer.returncode == 0, answer.stderr
+    data = json.loads(answer.stdout)
+    certificate = load_certificate(json.dumps(data))
+    assert 2 * (1 - 1e-5) <= max(data["guarantee"]["deflection"]) <= 2.0
+    # each drawn plant's own bound, from the same storage and set, stays within the stated one
+    drawn = [p for plant, interval in zip(setup.plants, setup.ranges, strict=True)
+             for p in interval.draw(plant, 5, 32)]
+    own = [max(storage_guarantee(p, certificate.storage, certificate.scheduled_set,
+                                 certificate.variation).deflection) for p in drawn]
+    assert max(own) <= max(data["guarantee"]["deflection"])

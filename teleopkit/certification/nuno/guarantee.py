@@ -14,7 +14,16 @@ never negative). Every term of :math:`V` is non-negative, so each one is bounded
 - position mismatch: :math:`\tfrac12 s_i (q_{l,i} - \theta_i)^2 \le \bar V`.
 
 :math:`V(0)` is evaluated at a start (the plant's initial positions, velocities zero, the past
-held) with the smallest stiffness of the class, which makes it largest. A certificate does not
+held) with the smallest stiffness of the class, which makes it largest.
+
+A plant whose parameters lie in ranges (:class:`~teleopkit.model.plant_range.PlantRange`) gets
+bounds that hold for every plant of the ranges: at rest the storage's remote part is the joint
+springs' energy, linear in their stiffness and free of the inertias, so :math:`V(0)` is largest
+with every ranged value at its upper end; the spring and rotor bounds take the lowest stiffness
+and rotor inertia; the link-speed bound takes the smallest :math:`\lambda_{min}(M_r)` with the
+masses and link inertias at their lower ends (the kinetic energy grows with each of them) over
+the ends and middles of any ranged lengths and centres of mass (a grid, as the configurations
+are). Several plants get the largest bound of each. A certificate does not
 record a start (no stability proof depends on one):
 :meth:`~teleopkit.certification.gain_certificate.GainCertificate.guarantee` takes it, the
 paper's by default. The bounds hold for a passive
@@ -27,7 +36,9 @@ lets the spring deflect by at most 0.5 rad from the plant's start (:func:`resolv
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -38,6 +49,7 @@ from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.dynamics import mass_matrix
 from teleopkit.model.params import PlanarArm, TeleoperatorParams
+from teleopkit.model.plant_range import PlantRange, value_of, with_values
 from teleopkit.sim.energy import local_energy, remote_energy
 from teleopkit.sim.state import StateLayout
 
@@ -54,7 +66,8 @@ def _start_state(params: TeleoperatorParams) -> np.ndarray:
     return state
 
 
-def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float) -> float:
+def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
+                  ranges: PlantRange | None = None) -> float:
     """``V(0)`` at the plant's initial state with the stiffness ``kappa``.
 
     Parameters
@@ -65,6 +78,9 @@ def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: 
         The storage.
     kappa : float
         The first applied ``kappa`` (positive).
+    ranges : PlantRange, optional
+        Ranges of the remote plant's parameters around ``params``: the largest ``V(0)`` over
+        them (at their upper ends, see the module's text).
 
     Returns
     -------
@@ -74,8 +90,58 @@ def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: 
     state = _start_state(params)
     shape = np.array(storage.shape)
     stretch = np.array(params.initial.local) - np.array(params.initial.motor)
+    remote = max(float(remote_energy(plant, state)) for plant in _ends(params, ranges))
     return float(local_energy(params, state) / storage.normaliser
-                 + remote_energy(params, state) / kappa + 0.5 * np.sum(shape * stretch**2))
+                 + remote / kappa + 0.5 * np.sum(shape * stretch**2))
+
+
+def _ends(params: TeleoperatorParams, ranges: PlantRange | None) -> tuple[TeleoperatorParams, ...]:
+    """The plant and, with ranges, the plants with every ranged value at its lower and upper end."""
+    return (params, *ranges.corners(params)) if ranges else (params,)
+
+
+def _softest_starts(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
+                    ranges: PlantRange | None) -> np.ndarray:
+    """Per joint ``i``, ``V(0)`` where joint ``i``'s deflection bound is largest over the ranges.
+
+    The bound grows as ``V(0) / S_i``, and ``V(0)`` is linear in every joint's stiffness: its
+    largest value is with joint ``i``'s spring at its softest and the others at their stiffest.
+    """
+    n = params.n_joints
+    if not ranges or "joints.stiffness" not in ranges.bounds:
+        return np.full(n, start_storage(params, storage, kappa, ranges))
+    low, high = ranges.bounds["joints.stiffness"]
+    stiffest = ranges.corners(params)[1]
+    return np.array([start_storage(with_values(stiffest, {"joints.stiffness": (
+        *high[:i], low[i], *high[i + 1:])}), storage, kappa) for i in range(n)])
+
+
+def _least(params: TeleoperatorParams, ranges: PlantRange | None, name: str) -> np.ndarray:
+    """Per joint, the smallest value of ``name`` (``"joints.stiffness"``, ...) over the ranges."""
+    return np.min([value_of(plant, name) for plant in _ends(params, ranges)], axis=0)
+
+
+def _least_remote_inertia(params: TeleoperatorParams, ranges: PlantRange | None) -> float:
+    """The smallest eigenvalue of the remote ``M(q)`` over configurations and ranges.
+
+    Masses and link inertias at their lower ends (``M`` grows with each in the Loewner order);
+    ranged lengths and centres of mass at the ends and middles of their intervals, every
+    combination.
+    """
+    if not ranges:
+        return _least_inertia(params.remote_arm)
+    lightest = ranges.corners(params)[0]
+    shaped = [(name, low, high) for name, (low, high) in ranges.bounds.items()
+              if name in ("remote_arm.lengths", "remote_arm.com")]
+    choices = [((lo, (lo + hi) / 2, hi)) for _, low, high in shaped
+               for lo, hi in zip(low, high, strict=True)]
+    least = math.inf
+    for values in itertools.product(*choices):
+        changes, k = {}, 0
+        for name, low, _ in shaped:
+            changes[name], k = tuple(values[k:k + len(low)]), k + len(low)
+        least = min(least, _least_inertia(with_values(lightest, changes).remote_arm))
+    return least
 
 
 def _least_inertia(arm: PlanarArm, samples: int = 721) -> float:
@@ -142,6 +208,25 @@ class StorageGuarantee:
         return cls(**{key: tuple(value) if isinstance(value, list) else value  # type: ignore[arg-type]
                       for key, value in data.items()})
 
+    @classmethod
+    def worst(cls, guarantees: Sequence[StorageGuarantee]) -> StorageGuarantee:
+        """The largest value of every bound over several plants' guarantees.
+
+        Parameters
+        ----------
+        guarantees : sequence of StorageGuarantee
+            One per plant (at least one), of the same class and number of joints.
+
+        Returns
+        -------
+        StorageGuarantee
+            Bounds that hold for each of the plants.
+        """
+        rows = [g.to_dict() for g in guarantees]
+        return cls.from_dict({key: (np.max([r[key] for r in rows], axis=0).tolist()
+                                    if isinstance(rows[0][key], list)
+                                    else max(r[key] for r in rows)) for key in rows[0]})
+
     def describe(self) -> str:
         """One line in the plant's units."""
         def joints(values: tuple[float, ...]) -> str:
@@ -163,7 +248,8 @@ def _bound_factor(variation: GainVariation, start: float) -> float:
 
 
 def storage_guarantee(params: TeleoperatorParams, storage: ScheduledStorage,
-                      allowed: ScheduledSet, variation: GainVariation) -> StorageGuarantee:
+                      allowed: ScheduledSet, variation: GainVariation,
+                      ranges: PlantRange | None = None) -> StorageGuarantee:
     """The bounds of :class:`StorageGuarantee` for a scheduled class.
 
     Parameters
@@ -176,44 +262,54 @@ def storage_guarantee(params: TeleoperatorParams, storage: ScheduledStorage,
         The class's set (its ``kappa`` range).
     variation : GainVariation
         ``scheduled:L`` or ``tank:T0`` (a tank in storage units, :func:`resolve_tank`).
+    ranges : PlantRange, optional
+        Ranges of the remote plant's parameters around ``params``: bounds for every plant of
+        them (see the module's text).
 
     Returns
     -------
     StorageGuarantee
         The bounds.
     """
-    start = start_storage(params, storage, allowed.kappa_low)
+    start = start_storage(params, storage, allowed.kappa_low, ranges)
     bound = _bound_factor(variation, start)
     kappa = allowed.kappa_high
     energy = kappa * bound  # E_r <= kappa V_bar
-    spring = np.array(params.joints.stiffness)
-    rotor = np.array(params.joints.rotor_inertia)
+    springs = [kappa * _bound_factor(variation, joint_start) for joint_start in
+               _softest_starts(params, storage, allowed.kappa_low, ranges)]
+    spring = _least(params, ranges, "joints.stiffness")
+    rotor = _least(params, ranges, "joints.rotor_inertia")
     shape = np.array(storage.shape)
     return StorageGuarantee(
-        start, bound, kappa, tuple(np.sqrt(2 * energy / spring).tolist()),
+        start, bound, kappa, tuple(np.sqrt(2 * np.array(springs) / spring).tolist()),
         tuple(np.sqrt(2 * energy / rotor).tolist()),
-        math.sqrt(2 * energy / _least_inertia(params.remote_arm)),
+        math.sqrt(2 * energy / _least_remote_inertia(params, ranges)),
         math.sqrt(2 * storage.normaliser * bound / _least_inertia(params.local_arm)),
         tuple(np.sqrt(2 * bound / shape).tolist()))
 
 
-def resolve_tank(params: TeleoperatorParams, storage: ScheduledStorage, allowed: ScheduledSet,
-                 variation: GainVariation) -> GainVariation:
+def resolve_tank(params: TeleoperatorParams | Sequence[TeleoperatorParams],
+                 storage: ScheduledStorage, allowed: ScheduledSet, variation: GainVariation,
+                 ranges: Sequence[PlantRange] = ()) -> GainVariation:
     """A tank asked for as a deflection (``tank:0.5rad``) as its initial level ``T0``.
 
-    The level is the one whose bound ``V(0) + T0`` allows exactly that spring deflection at the
-    class's largest stiffness on the softest joint spring (the others deflect less).
+    The level is the one whose bound ``V(0) + T0`` allows that spring deflection at the class's
+    largest stiffness on the softest joint spring (the others deflect less); for several plants
+    or ranges, the smallest such level (every plant deflects at most that much). It is rounded
+    down to six significant digits, as the certificate records it.
 
     Parameters
     ----------
-    params : TeleoperatorParams
-        Teleoperator.
+    params : TeleoperatorParams or sequence of TeleoperatorParams
+        Teleoperator, or every plant the certificate covers (one storage serves them all).
     storage : ScheduledStorage
         Its storage.
     allowed : ScheduledSet
         The class's set.
     variation : GainVariation
         The class; returned unchanged unless it is a tank given in ``rad``.
+    ranges : sequence of PlantRange, optional
+        The range of each plant; none by default.
 
     Returns
     -------
@@ -227,11 +323,27 @@ def resolve_tank(params: TeleoperatorParams, storage: ScheduledStorage, allowed:
     """
     if variation.kind != "tank" or variation.unit != "rad":
         return variation
-    start = start_storage(params, storage, allowed.kappa_low)
-    spring = float(np.min(params.joints.stiffness))
-    level = spring * variation.value**2 / (2 * allowed.kappa_high) - start
-    if level < 0:
-        least = math.sqrt(2 * allowed.kappa_high * start / spring)
+    plants = [params] if isinstance(params, TeleoperatorParams) else list(params)
+    levels, least = [], 0.0
+    for plant, interval in zip(plants, tuple(ranges) or (None,) * len(plants), strict=True):
+        starts = _softest_starts(plant, storage, allowed.kappa_low, interval)
+        spring = _least(plant, interval, "joints.stiffness")
+        levels.append(float(np.min(spring * variation.value**2 / (2 * allowed.kappa_high)
+                                   - starts)))
+        least = max(least, float(np.max(np.sqrt(2 * allowed.kappa_high * starts / spring))))
+    if min(levels) < 0:
         raise ValueError(f"a tank allowing {variation.value:g} rad of spring deflection does "
                          f"not exist: the start alone allows {least:.4g} rad (ask for more)")
-    return GainVariation("tank", level)
+    return GainVariation("tank", _round_down(min(levels)))
+
+
+def _round_down(value: float, digits: int = 6) -> float:
+    """``value`` rounded down to ``digits`` significant digits.
+
+    A certificate records its class as text (six significant digits); the level it records
+    must read back as the level its set was derived with, and may only be smaller.
+    """
+    if value == 0:
+        return 0.0
+    scale = 10.0 ** (digits - 1 - math.floor(math.log10(value)))
+    return math.floor(value * scale) / scale

@@ -11,20 +11,22 @@ tank) is enforced by the safety layer at every control step.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict
 
 import numpy as np
 
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.certification.gain_classes import GainVariation
+from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.nuno.condition import NUNO_EPS, nuno_joint_margins, nuno_polytope
 from teleopkit.certification.nuno.guarantee import resolve_tank
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import TeleoperatorParams, plant_record
+from teleopkit.model.plant_range import PlantRange
 
-__all__ = ["TANK_REFILL", "certify_scheduled", "scheduled_set", "shape_rows"]
+__all__ = ["TANK_REFILL", "certify_scheduled", "plants_tank", "scheduled_set", "shape_rows"]
 
 TANK_REFILL = 0.5
 """Fraction of the proven dissipation that refills the tank (and of the storage released when
@@ -96,6 +98,43 @@ def shape_rows(shape: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, tuple[
         labels += [f"common shape: K_r{i + 1} <= {shape[i]:g} K_r1",
                    f"common shape: K_r{i + 1} >= {shape[i]:g} K_r1"]
     return np.array(rows).reshape(-1, 2 * n), np.zeros(len(rows)), tuple(labels)
+
+
+def plants_tank(plants: Sequence[TeleoperatorParams], box: GainBox, tl_max: float,
+                tr_max: float, variation: GainVariation | str,
+                ranges: Sequence[PlantRange] = ()) -> GainVariation:
+    """The class, with a tank asked for in ``rad`` sized for every plant and range.
+
+    ``tank:Drad`` is the tank whose bound allows ``D`` rad of spring deflection on the first
+    plant; certifying several plants, or a plant's ranges, takes the smallest level over them
+    (:func:`~teleopkit.certification.nuno.guarantee.resolve_tank`), which the certificate of
+    the first plant then carries as ``tank:T0``.
+
+    Parameters
+    ----------
+    plants : sequence of TeleoperatorParams
+        The plants (at least one; one closed-form storage serves them all).
+    box : GainBox
+        Remote gain ranges.
+    tl_max, tr_max : float
+        Delay bounds in seconds.
+    variation : GainVariation or str
+        The class; returned parsed, and unchanged unless it is a tank given in ``rad``.
+    ranges : sequence of PlantRange, optional
+        The range of each plant; none by default.
+
+    Returns
+    -------
+    GainVariation
+        The class.
+    """
+    variation = (variation if isinstance(variation, GainVariation)
+                 else parse_gain_variation(variation))
+    if variation.unit != "rad":
+        return variation
+    storage = ScheduledStorage.for_plant(plants[0], tl_max, tr_max)
+    allowed = scheduled_set(plants[0], storage, box, variation)
+    return resolve_tank(plants, storage, allowed, variation, ranges)
 
 
 def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
