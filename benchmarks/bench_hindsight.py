@@ -4,7 +4,8 @@ Run from the repository root (about a minute per family on one core; with ``--sc
 minutes)::
 
     python benchmarks/bench_hindsight.py [--families NAME ...] [--points 14] [--scenarios 32]
-        [--schedules] [--generations 30] [--population 12]
+        [--schedules] [--generations 30] [--population 12] [--segments 0 0.5 ...] [--per-joint]
+        [--control]
 
 For each condition family of ``bench_conditions.py``: a grid of uniform constant gains (the
 same ``K_r`` on every joint, the same ``B_r``; ``points x points`` over the certificate's box,
@@ -23,7 +24,10 @@ CMA-ES once for the family as a whole, then again for each scenario alone, start
 family's schedule (kept where the search finds nothing cheaper). A tuner's run on a scenario is
 a schedule for that scenario, so the second is an estimate of the most any feedback could gain
 over the family's best schedule in that class (an estimate: the segments restrict it, and the
-search may stop short).
+search may stop short). ``--segments`` sets the segments' start times and ``--per-joint`` lets
+every joint's gains move on their own, for a finer and wider search of the same question;
+``--control`` continues the family's search as long as each scenario's before comparing, so
+that the per-scenario gain is not the family search's unfinished work.
 """
 
 from __future__ import annotations
@@ -68,9 +72,9 @@ SEGMENTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
 class _Schedules:
     """Piecewise-constant gains per lane: lane ``l`` plays ``gains[l, k]`` in segment ``k``."""
 
-    def __init__(self, gains: np.ndarray, period: float) -> None:
+    def __init__(self, gains: np.ndarray, segments: tuple[float, ...], period: float) -> None:
         self.gains = gains
-        self.starts = np.round(np.array(SEGMENTS) / period)
+        self.starts = np.round(np.array(segments) / period)
         self.step = 0
 
     def reset(self) -> None:
@@ -82,52 +86,78 @@ class _Schedules:
         return self.gains[:, segment]
 
 
-def _schedule_costs(points: np.ndarray, batch: Scenario, config: FlexTeleopConfig) -> np.ndarray:
+def _schedule_costs(points: np.ndarray, batch: Scenario, config: FlexTeleopConfig,
+                    segments: tuple[float, ...] = SEGMENTS, per_joint: bool = False
+                    ) -> np.ndarray:
     """Costs ``(C, B)`` of schedules, all in one simulated batch.
 
-    ``points`` in ``[0, 1]^(2 S)`` (``K_r`` and ``B_r`` of each segment over the box): shape
-    ``(C, 2 S)``, each schedule on every scenario, or ``(C, B, 2 S)``, one per scenario.
+    ``points`` in ``[0, 1]^(g S)`` (the gains of each segment over the box: ``K_r`` and ``B_r``,
+    ``g = 2``, or with ``per_joint`` every joint's own, ``g = 2 n``): shape ``(C, g S)``, each
+    schedule on every scenario, or ``(C, B, g S)``, one per scenario.
     """
     box = config.safety_certificate().box
     n = len(box.lower) // 2
-    count = len(points)
+    count, width = len(points), points.shape[-1]
     points = np.broadcast_to(points[:, None] if points.ndim == 2 else points,
-                             (count, batch.batch, 2 * len(SEGMENTS)))
-    x = np.clip(points, 0.0, 1.0).reshape(count * batch.batch, len(SEGMENTS), 2)
-    low, high = box.lower[[0, n]], box.upper[[0, n]]
-    gains = np.repeat(low + x * (high - low), n, axis=-1)  # K_r on every joint, then B_r
+                             (count, batch.batch, width))
+    x = np.clip(points, 0.0, 1.0).reshape(count * batch.batch, len(segments), -1)
+    if per_joint:
+        gains = box.lower + x * (box.upper - box.lower)
+    else:  # K_r on every joint, then B_r
+        low, high = box.lower[[0, n]], box.upper[[0, n]]
+        gains = np.repeat(low + x * (high - low), n, axis=-1)
     # lane c B + b: scenario b with schedule (c, b), as Scenario.repeat lays them out
-    costs, unsafe = episode_costs(_Schedules(gains, config.control_period),
+    costs, unsafe = episode_costs(_Schedules(gains, segments, config.control_period),
                                   batch.repeat(count), config)
     if unsafe:
         raise RuntimeError(f"{unsafe} applied gains outside the certified set")
     return costs.reshape(count, batch.batch)
 
 
-def schedule_hindsight(setup: Setup, scenarios: int, population: int, generations: int
-                       ) -> tuple[float, float]:
-    """Per-scenario best schedules against the family's best: mean-cost change, mean ratio."""
+def schedule_hindsight(setup: Setup, scenarios: int, population: int, generations: int,
+                       segments: tuple[float, ...] = SEGMENTS, per_joint: bool = False,
+                       control: bool = False) -> tuple[float, float]:
+    """Per-scenario best schedules against the family's best: mean-cost change, mean ratio.
+
+    With ``control`` the family's search is continued from its best as long as each
+    scenario's (the same generations and step size) and the cheaper of the two family schedules
+    is the comparator: what the per-scenario searches gain then owes nothing to a family search
+    stopped short.
+    """
     import cma
 
     certificate = default_certificate(setup.params, setup.network.reached_bounds,
                                       COVERING_CLASS, setup.plants, setup.ranges)
     config = FlexTeleopConfig(setup, certificate)
     batch = setup.scenarios(np.random.default_rng(EVAL_SEED), scenarios)
+    width = len(segments) * (len(certificate.box.lower) if per_joint else 2)
+
+    def costs_of(points: np.ndarray) -> np.ndarray:
+        return _schedule_costs(points, batch, config, segments, per_joint)
+
     options = {"bounds": [0.0, 1.0], "popsize": population, "seed": 1, "verbose": -9}
-    family = cma.CMAEvolutionStrategy(np.full(2 * len(SEGMENTS), 0.3), 0.2, options)
+    family = cma.CMAEvolutionStrategy(np.full(width, 0.3), 0.2, options)
     for _ in range(generations):
         points = np.array(family.ask())
-        family.tell(list(points), list(_schedule_costs(points, batch, config).mean(axis=1)))
+        family.tell(list(points), list(costs_of(points).mean(axis=1)))
     best = np.asarray(family.result.xbest)
-    common = _schedule_costs(best[None], batch, config)[0]
+    common = costs_of(best[None])[0]
     searches = [cma.CMAEvolutionStrategy(best, 0.1, options) for _ in range(batch.batch)]
     own = common.copy()
     for _ in range(generations):  # every scenario's own search, side by side in one batch
-        asked = np.array([search.ask() for search in searches])  # (B, C, 2 S)
-        costs = _schedule_costs(asked.transpose(1, 0, 2), batch, config)
+        asked = np.array([search.ask() for search in searches])  # (B, C, width)
+        costs = costs_of(asked.transpose(1, 0, 2))
         for b, search in enumerate(searches):
             search.tell(list(asked[b]), list(costs[:, b]))
         own = np.minimum(own, costs.min(axis=0))
+    if control:  # the family's search continued as long: what the per-scenario ones owe to it
+        family = cma.CMAEvolutionStrategy(best, 0.1, options)
+        for _ in range(generations):
+            points = np.array(family.ask())
+            family.tell(list(points), list(costs_of(points).mean(axis=1)))
+        continued = costs_of(np.asarray(family.result.xbest)[None])[0]
+        if continued.mean() < common.mean():
+            common, own = continued, np.minimum(own, continued)
     return float(own.mean() / common.mean() - 1), float((own / common).mean() - 1)
 
 
@@ -140,9 +170,17 @@ def main() -> None:
                         help="schedules under the tuners' class in place of constant gains")
     parser.add_argument("--generations", type=int, default=30, help="CMA-ES generations")
     parser.add_argument("--population", type=int, default=12, help="CMA-ES population")
+    parser.add_argument("--segments", nargs="+", type=float, default=list(SEGMENTS),
+                        help="start times [s] of the schedules' segments, the first 0")
+    parser.add_argument("--per-joint", action="store_true",
+                        help="every joint's gains searched on their own (not uniform)")
+    parser.add_argument("--control", action="store_true",
+                        help="continue the family's search as long as each scenario's first")
     parser.add_argument("--out", type=Path, default=Path("runs/hindsight"),
                         help="where the delay trace of the trace families is written")
     args = parser.parse_args()
+    if args.segments[0] != 0 or np.any(np.diff(args.segments) <= 0):
+        parser.error("--segments: increasing start times from 0")
     args.out.mkdir(parents=True, exist_ok=True)
     chosen = families(args.out)
     if args.schedules:
@@ -153,7 +191,8 @@ def main() -> None:
     for name in args.families or list(chosen):
         if args.schedules:
             change, ratio = schedule_hindsight(chosen[name], args.scenarios, args.population,
-                                               args.generations)
+                                               args.generations, tuple(args.segments),
+                                               args.per_joint, args.control)
             print(f"| {name} | {100 * change:+.1f} % | {100 * ratio:+.1f} % |", flush=True)
             continue
         change, ratio, gains = hindsight(chosen[name], args.points, args.scenarios)
