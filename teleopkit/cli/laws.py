@@ -65,9 +65,9 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
     from teleopkit.rl.law_search import LawSearchConfig, law_start, search_gain_law
 
     check_output_dir(out, "--out")
+    check_traces(setup, FlexTeleopConfig.episode_length, "--setup")  # the laws' episodes
     chosen = _law_certificate(variation, certificate, setup)
     config = FlexTeleopConfig(setup, chosen, observation="adaptive")
-    check_traces(setup, config.episode_length, "--setup")
     settings = LawSearchConfig(generations=generations, population=population,
                                scenarios=scenarios, harm=harm, seed=seed)
     click.echo(f"searching a gain law under {chosen.gain_variation} for the setup "

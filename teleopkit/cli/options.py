@@ -202,22 +202,17 @@ def check_traces(setup: Setup, duration: float, option: str) -> None:
     ----------
     setup : Setup
         The setup, its network replaced by a ``--delay`` if one was given
-        (:meth:`~teleopkit.setup.Setup.with_delay`): each ``csv:`` profile of it is checked
-        (:func:`~teleopkit.delays.spec.check_trace_ends`).
+        (:meth:`~teleopkit.setup.Setup.with_delay`):
+        :meth:`~teleopkit.setup.network.Network.check_ends`.
     duration : float
         The longest run in seconds.
     option : str
         The option that gave the network, for the message.
     """
-    from teleopkit.delays.spec import check_trace_ends, parse_delay
-
-    network = setup.network
-    for spec in dict.fromkeys(network.forward.profiles + network.backward.profiles):
-        if spec.startswith("csv:"):
-            try:
-                check_trace_ends(parse_delay(spec), duration)
-            except ValueError as error:
-                raise _bad(option, str(error)) from None
+    try:
+        setup.network.check_ends(duration)
+    except ValueError as error:
+        raise _bad(option, str(error)) from None
 
 
 def check_covers_setup(certificate: GainCertificate, setup: Setup, delay: str | None,

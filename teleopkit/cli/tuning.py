@@ -103,10 +103,10 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: 
         raise click.BadParameter(f"{out / CHECKPOINT} exists; pass --resume to continue it or "
                                  "choose another directory", param_hint="'--out'")
     check_unlocked(out / LOCK, str(out))  # before anything is printed
-    env_config = FlexTeleopConfig(setup, observation=observation)
     settings = _training_config(ctx, out, resume, steps, envs, seed, recipe)
     check_traces(setup, max(settings.episode_length, settings.validation_length or 0.0),
                  "--setup")
+    env_config = FlexTeleopConfig(setup, observation=observation)
     chosen = _training_certificate(out, resume, variation, certificate, env_config)
     per_round = _round_steps(settings)
     if settings.total_steps % per_round:

@@ -90,8 +90,9 @@ class FlexTeleopConfig:
         form) for the network's delay bounds.
     episode_length : float
         Episode duration in seconds (truncation), a whole number of control periods; a recorded
-        operator motion of the setup must last that long
-        (:func:`~teleopkit.sim.motions.check_motion_ends`).
+        operator motion or delay trace of the setup must last that long
+        (:func:`~teleopkit.sim.motions.check_motion_ends`,
+        :func:`~teleopkit.delays.spec.check_trace_ends`).
     control_period : float
         Gain hold period (agent sample time) in seconds.
     dt : float
@@ -139,7 +140,8 @@ class FlexTeleopConfig:
         if self.decision_period < 1 or periods % self.decision_period:
             raise ValueError(f"decision_period must be a whole number >= 1 of control periods "
                              f"that divides the episode's {periods}, got {self.decision_period}")
-        self.setup.operator.motion.check_ends(self.episode_length)  # a recording long enough
+        self.setup.operator.motion.check_ends(self.episode_length)  # recordings long enough
+        self.setup.network.check_ends(self.episode_length)
 
     @property
     def max_steps(self) -> int:

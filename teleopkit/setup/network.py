@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from teleopkit.setup.reading import Node, SetupError
+from teleopkit.setup.reading import Node, SetupError, read_once
 
 if TYPE_CHECKING:
     from teleopkit.delays.profiles import DelayProfile
@@ -295,3 +295,24 @@ class Network:
             Forward and backward profiles.
         """
         return self.forward.draw(rng, batch, 0), self.backward.draw(rng, batch, 1)
+
+    def check_ends(self, duration: float) -> None:
+        """Refuse a recorded delay trace (``csv:PATH``) that ends before a run does.
+
+        Parameters
+        ----------
+        duration : float
+            Length of the run in seconds.
+
+        Raises
+        ------
+        ValueError
+            As :func:`~teleopkit.delays.spec.check_trace_ends` (other profiles never end).
+        """
+        from teleopkit.delays.profiles import TraceDelay
+        from teleopkit.delays.spec import check_trace_ends
+
+        specs = dict.fromkeys(self.forward.profiles + self.backward.profiles)
+        for spec in (s for s in specs if s.startswith("csv:")):
+            trace = read_once(TraceDelay.from_csv, spec.removeprefix("csv:"))
+            check_trace_ends((trace, trace), duration)

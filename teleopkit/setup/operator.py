@@ -20,7 +20,6 @@ Motions (the ``operator.motion`` key of a setup file):
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +28,7 @@ import numpy as np
 
 from teleopkit.model.params import Operator
 from teleopkit.setup.network import file_digest
-from teleopkit.setup.reading import Node, listed
+from teleopkit.setup.reading import Node, listed, read_once
 from teleopkit.sim.motions import (
     Motion,
     RecordedMotion,
@@ -265,22 +264,8 @@ class MotionSpec:
 
 
 def _recording(path: str | Path) -> RecordedMotion:
-    """The recorded motion in ``path``, read once while the file stays as it is.
-
-    Setups check a recording's length at every environment they configure and draw it at every
-    batch of scenarios; the file is read again only when its size or modification time changes.
-    """
-    try:
-        stat = Path(path).stat()
-    except OSError:
-        return RecordedMotion.from_csv(path)  # which names the problem in one line
-    return _read_recording(str(path), stat.st_mtime_ns, stat.st_size)
-
-
-@functools.lru_cache(maxsize=16)
-def _read_recording(path: str, modified: int, size: int) -> RecordedMotion:
-    """:meth:`RecordedMotion.from_csv`, cached by the file's path, modification time and size."""
-    return RecordedMotion.from_csv(path)
+    """The recorded motion in ``path``, read once while the file stays as it is."""
+    return read_once(RecordedMotion.from_csv, path)
 
 
 def _draw_mix(parts: tuple[MotionSpec, ...], rng: np.random.Generator, batch: int, n: int,

@@ -7,13 +7,16 @@ raising :class:`SetupError` (a :class:`ValueError`) with that path and the probl
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-__all__ = ["Node", "SetupError", "listed", "load_document"]
+__all__ = ["Node", "SetupError", "listed", "load_document", "read_once"]
+
+_Read = TypeVar("_Read")
 
 
 class SetupError(ValueError):
@@ -243,3 +246,34 @@ def _shown(value: Any) -> str:
     """A short text of ``value`` for a message."""
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def read_once(reader: Callable[[str], _Read], path: str | Path) -> _Read:
+    """``reader(path)``, read again only when the file's size or modification time changes.
+
+    A setup's recorded motions and delay traces are checked at every environment configured
+    from it and drawn at every batch of scenarios; their files are read once.
+
+    Parameters
+    ----------
+    reader : callable
+        Reads the file (``RecordedMotion.from_csv``, ``TraceDelay.from_csv``).
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    object
+        What ``reader`` returns.
+    """
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return reader(str(path))  # which names the problem in one line
+    return _read(reader, str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=32)
+def _read(reader: Callable[[str], Any], path: str, modified: int, size: int) -> Any:
+    """``reader(path)``, cached by the reader and the file's path, modification time and size."""
+    return reader(path)

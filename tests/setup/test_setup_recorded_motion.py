@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,7 @@ from teleopkit.rl.env import FlexTeleopConfig, FlexTeleopVectorEnv
 from teleopkit.rl.evaluation import closed_loop
 from teleopkit.robustness.spec import CampaignSpec
 from teleopkit.setup import Setup
+from teleopkit.setup.reading import read_once
 from teleopkit.sim.motions import RecordedMotion, check_motion_ends
 
 ARM = {"local_arm": {"lengths": [0.38, 0.38], "masses": [0.5, 0.35]}}
@@ -75,3 +77,31 @@ def test_a_campaign_refuses_it_before_any_run(tmp_path):
     with pytest.raises(ValueError, match=re.escape(f"setup operator.motion: {ENDS_EARLY}")):
         CampaignSpec.from_dict(spec, tmp_path)
     assert CampaignSpec.from_dict({**spec, "duration": 1.0}, tmp_path).duration == 1.0
+
+
+def test_a_setup_delay_trace_shorter_than_the_episodes_is_refused_by_the_environments(tmp_path):
+    """The library refuses it up front, as the command line does (training, law search)."""
+    t = np.linspace(0.0, 1.5, 16)
+    pd.DataFrame({"time": t, "delay": 0.2 + 0.05 * np.sin(t)}).to_csv(tmp_path / "net.csv",
+                                                                     index=False)
+    channel = {"max": 0.3, "profile": "csv:net.csv"}
+    setup = Setup.from_data({"plant": ARM, "network": {"forward": channel,
+                                                       "backward": channel}}, tmp_path)
+    with pytest.raises(ValueError, match=r"the delay trace ends at 1\.5 s, before the 2 s run"):
+        FlexTeleopConfig(setup, episode_length=2.0)
+    FlexTeleopConfig(setup, episode_length=1.5)
+
+
+def test_a_recording_is_read_once_while_its_file_stays_as_it_is(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("a\n1\n")
+    calls = []
+
+    def reader(name: str) -> str:
+        calls.append(name)
+        return Path(name).read_text()
+
+    assert read_once(reader, path) == read_once(reader, str(path)) == "a\n1\n"
+    assert len(calls) == 1
+    path.write_text("a\n1\n2\n")  # another size: read again
+    assert read_once(reader, path) == "a\n1\n2\n" and len(calls) == 2
