@@ -78,11 +78,10 @@ def spec_reach(spec: str, direction: int) -> tuple[float, float]:
         Floor and bound in seconds.
     """
     from teleopkit.delays.profiles import FourierDelay, delay_floor
-    from teleopkit.delays.spec import parse_delay
 
     if spec == "paper":
         return FourierDelay(0.5).floor, FourierDelay(1.0).bound
-    profile = parse_delay(spec, np.random.default_rng(0))[direction]
+    profile = _parsed(spec, np.random.default_rng(0))[direction]
     return delay_floor(profile), float(profile.bound)
 
 
@@ -233,11 +232,10 @@ class Channel:
         """One spec's profile for ``batch`` scenarios (``per_scenario``: ``batch`` columns)."""
         from teleopkit.delays.combinators import StackedDelay
         from teleopkit.delays.profiles import FourierDelay
-        from teleopkit.delays.spec import parse_delay
 
         if spec == "paper":
             return FourierDelay(rng.uniform(0.5, 1.0, size=batch))
-        profile = parse_delay(spec, rng)[direction]
+        profile = _parsed(spec, rng)[direction]
         width = np.shape(profile.sample(np.zeros(1)))[-1]
         if per_scenario and width != batch:
             return StackedDelay((profile,) * batch)
@@ -309,10 +307,24 @@ class Network:
         ValueError
             As :func:`~teleopkit.delays.spec.check_trace_ends` (other profiles never end).
         """
-        from teleopkit.delays.profiles import TraceDelay
         from teleopkit.delays.spec import check_trace_ends
 
         specs = dict.fromkeys(self.forward.profiles + self.backward.profiles)
         for spec in (s for s in specs if s.startswith("csv:")):
-            trace = read_once(TraceDelay.from_csv, spec.removeprefix("csv:"))
-            check_trace_ends((trace, trace), duration)
+            check_trace_ends(_parsed(spec), duration)
+
+
+def _parsed(spec: str, rng: np.random.Generator | None = None
+            ) -> tuple[DelayProfile, DelayProfile]:
+    """:func:`~teleopkit.delays.spec.parse_delay`, a recorded trace read once.
+
+    While its file stays unchanged (:func:`~teleopkit.setup.reading.read_once`), the bounds,
+    the checks and every batch's draw share one reading.
+    """
+    from teleopkit.delays.profiles import TraceDelay
+    from teleopkit.delays.spec import parse_delay
+
+    if spec.startswith("csv:"):
+        trace = read_once(TraceDelay.from_csv, spec.removeprefix("csv:"))
+        return trace, trace
+    return parse_delay(spec, rng)

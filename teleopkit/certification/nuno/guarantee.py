@@ -131,17 +131,14 @@ def _least_remote_inertia(params: TeleoperatorParams, ranges: PlantRange | None)
     if not ranges:
         return _least_inertia(params.remote_arm)
     lightest = ranges.corners(params)[0]
-    shaped = [(name, low, high) for name, (low, high) in ranges.bounds.items()
-              if name in ("remote_arm.lengths", "remote_arm.com")]
-    choices = [((lo, (lo + hi) / 2, hi)) for _, low, high in shaped
-               for lo, hi in zip(low, high, strict=True)]
-    least = math.inf
-    for values in itertools.product(*choices):
-        changes, k = {}, 0
-        for name, low, _ in shaped:
-            changes[name], k = tuple(values[k:k + len(low)]), k + len(low)
-        least = min(least, _least_inertia(with_values(lightest, changes).remote_arm))
-    return least
+    shaped = {name: interval for name, interval in ranges.bounds.items()
+              if name in ("remote_arm.lengths", "remote_arm.com")}
+    grids = [list(itertools.product(*((lo, (lo + hi) / 2, hi)
+                                      for lo, hi in zip(*interval, strict=True))))
+             for interval in shaped.values()]  # each name's per-joint values
+    arms = (with_values(lightest, dict(zip(shaped, values, strict=True))).remote_arm
+            for values in itertools.product(*grids))
+    return min(_least_inertia(arm) for arm in arms)
 
 
 def _least_inertia(arm: PlanarArm, samples: int = 721) -> float:
