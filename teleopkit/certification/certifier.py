@@ -23,6 +23,7 @@ from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.lmi.workers import start_workers, using_workers
 from teleopkit.certification.methods import best_certificate, certify_with, methods_for
+from teleopkit.certification.nuno.guarantee import Start
 from teleopkit.certification.nuno.scheduled import plants_tank
 from teleopkit.certification.question import Question
 from teleopkit.certification.verification import cover_plants
@@ -135,7 +136,8 @@ def default_certificate(params: TeleoperatorParams | None = None,
                         delay_bound: float | tuple[float, float] = 1.0,
                         variation: GainVariation | str = "frozen",
                         plants: Sequence[TeleoperatorParams] = (),
-                        ranges: Sequence[PlantRange] = ()) -> GainCertificate:
+                        ranges: Sequence[PlantRange] = (), start: Start | None = None,
+                        ) -> GainCertificate:
     """Closed-form certificate of :data:`DEFAULT_BOX` for delays up to ``delay_bound``.
 
     The box itself is not certified (at ``K_r = 50`` it needs ``B_r >= 125`` for 1 s delays);
@@ -156,6 +158,9 @@ def default_certificate(params: TeleoperatorParams | None = None,
         :func:`~teleopkit.certification.verification.cover_plants`.
     ranges : sequence of PlantRange, optional
         The range of each of ``plants`` (a setup's :attr:`~teleopkit.setup.Setup.ranges`).
+    start : StartSpec or StartMix, optional
+        Initial positions (the ``start`` of a :class:`~teleopkit.setup.Setup`) a tank asked for in
+        ``rad`` is sized from; ``params.initial`` by default.
 
     Returns
     -------
@@ -166,8 +171,7 @@ def default_certificate(params: TeleoperatorParams | None = None,
     box = GainBox.uniform(*DEFAULT_BOX, n_joints=params.n_joints)
     forward, backward = (delay_bound if isinstance(delay_bound, tuple)
                          else (delay_bound, delay_bound))
-    if plants:
-        variation = plants_tank(plants, box, forward, backward, variation, ranges)
+    variation = plants_tank(plants or [params], box, forward, backward, variation, ranges, start)
     certificate = certify_gains(params, box, forward, backward, method="nuno",
                                 variation=variation)
     return cover_plants(certificate, plants, ranges) if plants else certificate

@@ -13,18 +13,19 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.certification.nuno.guarantee import StorageGuarantee, storage_guarantee
+from teleopkit.certification.nuno.guarantee import Start, StorageGuarantee, storage_guarantee
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import InitialState, TeleoperatorParams, plant_params
 from teleopkit.model.plant_range import PlantRange
+from teleopkit.setup.start import StartMix, StartSpec
 
 __all__ = ["DelayBoundError", "GainCertificate"]
 
@@ -142,14 +143,15 @@ class GainCertificate:
         """The set of a scheduled class (``details["set"]``), None for the other classes."""
         return self._scheduled
 
-    def guarantee(self, start: InitialState | None = None) -> StorageGuarantee | None:
+    def guarantee(self, start: InitialState | Start | None = None) -> StorageGuarantee | None:
         """What a scheduled class's storage bound allows from a start, in the plant's units.
 
         Parameters
         ----------
-        start : InitialState, optional
-            Initial positions (velocities zero, the past held); the paper's start by default
-            (two joints).
+        start : InitialState, StartSpec or StartMix, optional
+            Initial positions (velocities zero, the past held): fixed, drawn from ranges or one
+            of several (the ``start`` of a :class:`~teleopkit.setup.Setup`), the bounds holding
+            from every one of them. The paper's start by default (two joints only).
 
         Returns
         -------
@@ -158,14 +160,24 @@ class GainCertificate:
             class (:mod:`teleopkit.certification.nuno.guarantee`), for every plant the
             certificate covers (its other plants and ranges too); None for the other classes
             or an empty set.
+
+        Raises
+        ------
+        ValueError
+            If no start is given for a plant that does not have two joints, or the start's
+            joints are not the plant's.
         """
         allowed, storage = self.scheduled_set, self.storage
         if allowed is None or storage is None or allowed.is_empty:
             return None
-        initial = start or InitialState()
+        if start is None and self.box.n_joints != 2:
+            raise ValueError(f"a guarantee of a {self.box.n_joints}-joint plant needs its start "
+                             "(the paper's start has two joints)")
+        starts = StartSpec.fixed(start or InitialState()) if not isinstance(
+            start, StartSpec | StartMix) else start
         return StorageGuarantee.worst([
-            storage_guarantee(replace(plant_params(record), initial=initial), storage, allowed,
-                              self.variation, interval)
+            storage_guarantee(plant_params(record), storage, allowed, self.variation, interval,
+                              starts)
             for record, interval in zip((self.plant, *self.other_plants), self.ranges,
                                         strict=True)])
 

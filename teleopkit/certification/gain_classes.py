@@ -14,7 +14,7 @@ class              what the remote gains may do
 ``tank[:T0]``      as ``scheduled``, with every fall of ``kappa`` paid from an energy tank that
                    starts at ``T0`` and is refilled by the dissipation the storage proves (needs
                    the remote arm's stored energy to be measured); ``tank:0.5rad`` asks for the
-                   tank whose bound allows 0.5 rad of spring deflection from the plant's start
+                   tank whose bound allows 0.5 rad of spring deflection from the start
 =================  ================================================================================
 
 The two last classes are proven on the nonlinear teleoperator by one Lyapunov–Krasovskii storage

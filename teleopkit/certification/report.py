@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from teleopkit.certification.gain_certificate import GainCertificate
-from teleopkit.model.params import PlanarArm, TeleoperatorParams, plant_record
+from teleopkit.certification.nuno.guarantee import Start
+from teleopkit.model.params import InitialState, PlanarArm, TeleoperatorParams, plant_record
 from teleopkit.setup.reading import listed
 
 __all__ = ["CLASSES_PAGE", "certificate_table"]
@@ -26,7 +27,8 @@ def _polygon(cert: GainCertificate, joint: int) -> str:
     return " ".join(f"({k:.4g}, {b:.4g})" for k, b in vertices)
 
 
-def certificate_table(results: Sequence[GainCertificate], footer: bool = True) -> str:
+def certificate_table(results: Sequence[GainCertificate], footer: bool = True,
+                      start: InitialState | Start | None = None) -> str:
     """Format one or more certificates of the same question as aligned text.
 
     Parameters
@@ -35,6 +37,10 @@ def certificate_table(results: Sequence[GainCertificate], footer: bool = True) -
         Certificates (for example one per method).
     footer : bool
         End with where the gain classes are explained.
+    start : InitialState, StartSpec or StartMix, optional
+        The start a scheduled class's guarantee is stated from
+        (:meth:`~teleopkit.certification.gain_certificate.GainCertificate.guarantee`; the
+        paper's by default, and none is stated for another number of joints).
 
     Returns
     -------
@@ -67,7 +73,8 @@ def certificate_table(results: Sequence[GainCertificate], footer: bool = True) -
             shape = allowed.shape
             lines.append("  common shape    " + ", ".join(
                 f"K_r{i + 1} = {s / shape[0]:g} K_r1" for i, s in enumerate(shape) if i))
-        guarantee = cert.guarantee()
+        guarantee = (cert.guarantee(start) if start is not None or box.n_joints == 2
+                     else None)
         if guarantee is not None:
             lines.append(f"  guarantees      {guarantee.describe()}")
         if cert.violation:
@@ -103,4 +110,4 @@ def plant_text(params: TeleoperatorParams) -> str:
             f"S_r {listed(params.joints.stiffness)}, J_r {listed(params.joints.rotor_inertia)}; "
             f"K_l {listed(params.local_gains.stiffness)}, B_l "
             f"{listed(params.local_gains.damping)}; K_s {params.operator.stiffness:g}, "
-            f"K_d {params.operator.damping:g} (fingerprint {record['fingerprint']})")
+            f"K_d {params.operator.damping:g} (plant fingerprint {record['fingerprint']})")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import click
@@ -93,8 +93,8 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
                                  "together, an LMI certificate is one plant's",
                                  param_hint="'--method'")
     box = GainBox.uniform(parse_range(kr_range, "--kr"), parse_range(br_range, "--br"), n)
-    if len(plants) > 1 or setup.plant_ranges:  # a tank asked in rad is sized for every plant
-        variation = plants_tank(plants, box, tl_max, tr_max, variation, setup.ranges)
+    # a tank asked in rad is sized for every plant, range and start of the setup
+    variation = plants_tank(plants, box, tl_max, tr_max, variation, setup.ranges, setup.start)
     proven: list[GainCertificate] = []
 
     def improved(certificate: GainCertificate) -> None:
@@ -116,7 +116,7 @@ def certify(kr_range: str, br_range: str, kl: float | None, bl: float | None,
     if "lmi" in methods_for(method, variation) and not as_json:
         click.echo("closed form (instant; the LMI answer follows):")
         closed = certify_all(params, box, tl_max, tr_max, "nuno", variation)
-        click.echo(_indented(certificate_table(closed, footer=False)))
+        click.echo(_indented(certificate_table(closed, footer=False, start=setup.start)))
     try:
         results = results if results is not None else solve()
     except KeyboardInterrupt:
@@ -208,14 +208,13 @@ def _answer(results: list[GainCertificate], as_json: bool, setup: Setup, note: s
     best = best_certificate(results)
     if as_json:
         payload = best.to_dict()
-        start = setup.params.initial
-        guarantee = best.guarantee(start)
-        if guarantee is not None:  # from the paper's start (no proof depends on a start)
-            payload["guarantee"] = {**guarantee.to_dict(), "start": asdict(start)}
+        guarantee = best.guarantee(setup.start)  # from every start of the setup
+        if guarantee is not None:
+            payload["guarantee"] = {**guarantee.to_dict(), "start": setup.start.to_data()}
         payload["results"] = [c.to_dict() for c in results]
         payload["setup"] = setup.record
         if note:
             payload["interrupted"] = note
         click.echo(json.dumps(payload, indent=2))
     else:
-        click.echo((f"{note}\n" if note else "") + certificate_table(results))
+        click.echo((f"{note}\n" if note else "") + certificate_table(results, start=setup.start))

@@ -12,7 +12,9 @@ from teleopkit.cli.options import (
     certificate_option,
     check_covers_setup,
     check_output_dir,
+    check_setup_step,
     check_traces,
+    dt_option,
     gain_variation,
     read_certificate,
     setup_option,
@@ -46,10 +48,11 @@ __all__ = ["search_law_command"]
                    "for the delays the setup's network reaches [default: "
                    "teleopkit.rl.env.COVERING_CLASS].")
 @certificate_option
+@dt_option
 @setup_option
 def search_law_command(generations: int, population: int, scenarios: int, harm: float,
                        seed: int, out: Path, variation: object, certificate: Path | None,
-                       setup: Setup) -> None:
+                       dt: float, setup: Setup) -> None:
     """Search a gain law for the setup: measured levels of motion and errors to remote gains.
 
     The law reads the adaptive observation's levels (how much the operator moves, how large
@@ -66,12 +69,13 @@ def search_law_command(generations: int, population: int, scenarios: int, harm: 
 
     check_output_dir(out, "--out")
     check_traces(setup, FlexTeleopConfig.episode_length, "--setup")  # the laws' episodes
+    check_setup_step(setup, dt)
     chosen = _law_certificate(variation, certificate, setup)
-    config = FlexTeleopConfig(setup, chosen, observation="adaptive")
+    config = FlexTeleopConfig(setup, chosen, observation="adaptive", dt=dt)
     settings = LawSearchConfig(generations=generations, population=population,
                                scenarios=scenarios, harm=harm, seed=seed)
     click.echo(f"searching a gain law under {chosen.gain_variation} for the setup "
-               f"(fingerprint {setup.fingerprint})", err=True)
+               f"(setup fingerprint {setup.fingerprint})", err=True)
     start = law_start(config, progress=None)
     click.echo("start: the best constant gains of the class "
                f"{[round(float(g), 4) for g in start]}", err=True)
@@ -124,7 +128,7 @@ def _law_certificate(variation: object, certificate: Path | None,
     chosen = (read_certificate(certificate) if certificate is not None else
               default_certificate(setup.params, setup.network.reached_bounds,
                                   variation or COVERING_CLASS,  # type: ignore[arg-type]
-                                  setup.plants, setup.ranges))
+                                  setup.plants, setup.ranges, setup.start))
     check_covers_setup(chosen, setup, None, "the --certificate")
     layer_for(chosen)  # refuses a certificate whose set is not certified, before any work
     return chosen

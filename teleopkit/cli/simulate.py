@@ -14,6 +14,7 @@ from teleopkit.cli.options import (
     check_disk,
     check_output,
     delay_spec,
+    dt_option,
     gains,
     run_duration,
     setup_option,
@@ -21,7 +22,7 @@ from teleopkit.cli.options import (
 from teleopkit.model.params import PLANT_LABELS
 from teleopkit.model.plant_range import value_of
 from teleopkit.setup.reading import listed
-from teleopkit.sim.timing import CONTROL_PERIOD, DEFAULT_DT
+from teleopkit.sim.timing import CONTROL_PERIOD
 
 if TYPE_CHECKING:
     from teleopkit.setup import Setup
@@ -44,10 +45,7 @@ _CSV_ROW_BYTES = 27 * 22
               help=f"Delays of both channels: {DELAY_SPECS} [default: the setup's network].")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of what the setup draws: operator motion, delays, start.")
-@click.option("--dt", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DT,
-              show_default=True,
-              help="Integration step [s]; the default is within 2e-6 rad of a converged run at the "
-                   "paper's gains, 1.4e-5 at the least damped certified gains (0.00125: 4e-7).")
+@dt_option
 @click.option("--out", type=click.Path(path_type=Path), required=True,
               help="CSV file for the trajectory.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,

@@ -16,8 +16,10 @@ from teleopkit.cli.options import (
     certificate_option,
     check_covers_setup,
     check_output_dir,
+    check_setup_step,
     check_traces,
     delay_spec,
+    dt_option,
     gain_variation,
     read_certificate,
     require_torch,
@@ -69,11 +71,12 @@ __all__ = ["evaluate_command", "reproduce_command", "train_command"]
                    "observation (link velocity, deflection rate, levels of motion and errors, "
                    "the measured delay; no integrals: teleopkit.rl.features).")
 @certificate_option
+@dt_option
 @setup_option
 @click.pass_context
 def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: str, out: Path,
                   resume: bool, variation: object, observation: str, certificate: Path | None,
-                  setup: Setup) -> None:
+                  dt: float, setup: Setup) -> None:
     """Train a TD3 gain tuner (checkpointed every episode; --resume continues exactly).
 
     Episodes draw their scenarios from the setup (--setup; the paper's by default): its
@@ -106,7 +109,8 @@ def train_command(ctx: click.Context, steps: int, envs: int, seed: int, recipe: 
     settings = _training_config(ctx, out, resume, steps, envs, seed, recipe)
     check_traces(setup, max(settings.episode_length, settings.validation_length or 0.0),
                  "--setup")
-    env_config = FlexTeleopConfig(setup, observation=observation)
+    check_setup_step(setup, dt)
+    env_config = FlexTeleopConfig(setup, observation=observation, dt=dt)
     chosen = _training_certificate(out, resume, variation, certificate, env_config)
     per_round = _round_steps(settings)
     if settings.total_steps % per_round:
@@ -155,7 +159,7 @@ def _training_certificate(out: Path, resume: bool, variation: object,
     elif variation is not None or not (resume and (out / CERTIFICATE).is_file()):
         chosen = default_certificate(config.params, bounds, variation or COVERING_CLASS,
                                      config.setup.plants,  # type: ignore[arg-type]
-                                     config.setup.ranges)
+                                     config.setup.ranges, config.setup.start)
     else:
         chosen = read_certificate(out / CERTIFICATE)
     whose = "the --certificate" if certificate is not None else "the run's certificate"
@@ -264,10 +268,11 @@ class _PolicyFile(click.Path):
               help="Gain certificate (teleopkit certify --json) to run the policies under; it "
                    "must cover the class they were trained under [default: the certificate "
                    "recorded in the first policy file].")
+@dt_option
 @setup_option
 def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                      delay: str | None, duration: float, out: Path, certificate: Path | None,
-                     setup: Setup) -> int:
+                     dt: float, setup: Setup) -> int:
     """Compare TD3 policies with the best static gains and the other comparators.
 
     Every row runs on the same held-out scenarios drawn from the setup; policies of one kind
@@ -303,12 +308,16 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
             policies.append(GainPolicy.load(path))
         except ValueError as error:
             raise click.BadParameter(str(error), param_hint="'--policy'") from None
+        _check_joints(_policy_name(path), policies[-1], setup)
+    check_setup_step(setup, dt)
     chosen = _evaluation_certificate([_policy_name(path) for path in policy_files], policies,
                                      certificate)
-    config = evaluation_config(chosen, setup, delay, duration)
+    config = evaluation_config(chosen, setup, delay, duration, dt)
     chosen = config.safety_certificate()  # extended to the setup's other plants
     check_covers_setup(chosen, config.setup, delay, *_evaluation_advice(certificate))
     policies = [law_under(policy, config) for policy in policies]
+    click.echo(f"evaluating under {chosen.gain_variation} on the certified set of the box "
+               + _box_text(chosen), err=True)
 
     def searching() -> None:
         click.echo(f"finding the comparators of {chosen.gain_variation} for setup "
@@ -318,7 +327,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
 
     comparators = comparators_for(policies[0], chosen, config, on_search=searching)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
-                           setup=setup)
+                           setup=setup, dt=dt)
     rows = tuner_rows(policies, chosen.gain_variation)
     tuner = next(iter(rows))
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles
@@ -347,6 +356,16 @@ def _policy_name(path: Path) -> str:
     from teleopkit.rl.policy import SHIPPED_POLICIES, resolve_policy
 
     return next((name for name in SHIPPED_POLICIES if resolve_policy(name) == path), str(path))
+
+
+def _check_joints(name: str, policy: GainPolicy, setup: Setup) -> None:
+    """Refuse, in one line, a policy that tunes another number of joints than the setup's."""
+    joints = policy.low.size // 2
+    if joints != setup.n_joints:
+        raise click.BadParameter(
+            f"{name} tunes the gains of {joints} joints, the setup's arms have "
+            f"{setup.n_joints}: search a gain law (teleopkit search-law --setup FILE) or train "
+            "a tuner (teleopkit train --setup FILE) for them", param_hint="'--policy'")
 
 
 def _evaluation_certificate(names: list[str], policies: list[GainPolicy],

@@ -49,6 +49,7 @@ from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import Controller, rollout
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
+from teleopkit.sim.timing import DEFAULT_DT
 
 __all__ = ["REFERENCE", "Comparators", "comparators_for", "evaluation_config",
            "frozen_counterpart", "policy_observation", "schedule_label", "tuner_controller",
@@ -203,12 +204,14 @@ class Comparators:
         -------
         str
             The setup's fingerprint, the certificate's plant fingerprint, box, gain class and
-            delay bounds, the episode length and the reward weights, as JSON text.
+            delay bounds, the episode length and the reward weights, and the integration step
+            where it is not the default, as JSON text.
         """
+        step = [] if config.dt == DEFAULT_DT else [config.dt]
         return json.dumps([config.setup.fingerprint, certificate.plant.get("fingerprint"),
                            certificate.box.to_dict(), certificate.gain_variation,
                            list(certificate.delay_bounds), config.episode_length,
-                           list(astuple(config.weights))])
+                           list(astuple(config.weights)), *step])
 
     @classmethod
     def find(cls, policy: GainPolicy, certificate: GainCertificate,
@@ -372,7 +375,8 @@ class Comparators:
 
 
 def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
-                      delay: str | None = None, duration: float = 40.0) -> FlexTeleopConfig:
+                      delay: str | None = None, duration: float = 40.0,
+                      dt: float = DEFAULT_DT) -> FlexTeleopConfig:
     """The settings a comparison runs under: the setup (its delays replaced if asked).
 
     Parameters
@@ -385,6 +389,8 @@ def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
         A delay spec for both directions in place of the setup's network.
     duration : float
         Episode length in seconds.
+    dt : float
+        Integration step in seconds.
 
     Returns
     -------
@@ -398,7 +404,7 @@ def evaluation_config(certificate: GainCertificate, setup: Setup | None = None,
         setup = setup.with_delay(delay)
     if (setup.other_plants or setup.plant_ranges) and certificate.covers_plant(setup.params):
         certificate = cover_plants(certificate, setup.plants, setup.ranges)
-    return FlexTeleopConfig(setup, certificate, episode_length=duration)
+    return FlexTeleopConfig(setup, certificate, episode_length=duration, dt=dt)
 
 
 def comparators_for(policy: GainPolicy, certificate: GainCertificate,

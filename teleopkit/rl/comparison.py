@@ -40,6 +40,7 @@ from teleopkit.rl.features import observation_size
 from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
+from teleopkit.sim.timing import DEFAULT_DT
 
 __all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
@@ -142,7 +143,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
             certificate: GainCertificate | None = None, delay: str | None = None,
             duration: float = 40.0, comparators: Comparators | None = None,
             others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None,
-            setup: Setup | None = None, progress: bool | None = None) -> pd.DataFrame:
+            setup: Setup | None = None, progress: bool | None = None,
+            dt: float = DEFAULT_DT) -> pd.DataFrame:
     """Per-scenario metrics of a tuner and its comparators on the same held-out scenarios.
 
     Parameters
@@ -179,6 +181,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     progress : bool, optional
         Show which row runs (and the comparators' searches) on standard error: by default on a
         terminal only; ``False`` never, ``True`` always (:mod:`teleopkit.progress`).
+    dt : float
+        Integration step in seconds (a smaller one for a plant the default cannot integrate).
 
     Returns
     -------
@@ -191,7 +195,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     certificate = certificate if certificate is not None else policy_certificate(policies[0])
     for policy in policies:
         check_covers(certificate, policy)
-    config = evaluation_config(certificate, setup, delay, duration)
+    config = evaluation_config(certificate, setup, delay, duration, dt)
     policies = [law_under(policy, config) for policy in policies]
     found = comparators or comparators_for(policies[0], certificate, config)
     tuners = {name: ([tuner_controller(p) for p in group],
@@ -263,7 +267,9 @@ def report_preamble(comparators: Comparators, scenarios: int, seed: int, delay: 
         f"every applied gain projected by the safety layer of the row's certificate. `{tuner}` "
         f"is {_tuner_words(tuner, policies)}; "
         f"`{REFERENCE}` the best constant gains of the frozen class on the certificate's box "
-        f"({_gains(comparators.frozen_static)}), the reference of the last column; "
+        f"({_gains(comparators.frozen_static)}; searched on training scenarios by a grid, "
+        "then Nelder-Mead: a local search, not a proven optimum), the reference of the last "
+        "column; "
         f"`fixed` the paper's gains (K_r = 10, B_r = 30).",
     ]
     if comparators.certificate != "frozen":

@@ -465,7 +465,8 @@ def _against(per_scenario: pd.DataFrame, tuner: str, other: str) -> str:
     """The tuner against another row: mean cost, paired difference, mean ratio, verdict."""
     relative, mean, error = paired_difference(per_scenario, tuner, other)
     ratio, ratio_error = cost_ratio(per_scenario, tuner, other)
-    verdict = ("no measurable difference in mean cost on these scenarios" if abs(mean) <= 2 * error
+    verdict = ("the same cost to rounding" if abs(relative) < 1e-9 else
+               "no measurable difference in mean cost on these scenarios" if abs(mean) <= 2 * error
                else "cheaper" if mean < 0 else "dearer")
     return (f"{100 * relative:+.1f} % cost (paired over the scenarios: {mean:+.4g} "
             f"± {error:.2g} per scenario, mean ± standard error; scenario by scenario "

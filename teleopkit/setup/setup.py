@@ -507,7 +507,7 @@ class Setup:
                 f"operator: K_s {self.operator.stiffness:g}, K_d {self.operator.damping:g}; "
                 f"{self.operator.motion.describe()}",
                 f"start: {self.start.describe()}",
-                f"fingerprint {self.fingerprint}"]
+                f"setup fingerprint {self.fingerprint} (plant, network, operator and start)"]
 
 
 def _describe_plants(plants: tuple[TeleoperatorParams, ...],
@@ -526,7 +526,8 @@ def _describe_plants(plants: tuple[TeleoperatorParams, ...],
 
 def _describe_plant(p: TeleoperatorParams, ranges: PlantRange) -> list[str]:
     """A plant for people: its arms, joints, local gains, environment and ranges."""
-    arms = [f"{name} arm: {p.n_joints} links, lengths {listed(arm.lengths)} m, masses "
+    links = "link" if p.n_joints == 1 else "links"
+    arms = [f"{name} arm: {p.n_joints} {links}, lengths {listed(arm.lengths)} m, masses "
             f"{listed(arm.masses)} kg{_describe_links(arm)}"
             for name, arm in (("local", p.local_arm), ("remote", p.remote_arm))]
     wall = ("free space" if not isinstance(p.environment, Wall)

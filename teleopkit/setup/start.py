@@ -144,6 +144,11 @@ class StartSpec:
         """Whether every scenario starts at the same positions."""
         return bool(np.array_equal(self.low, self.high))
 
+    @property
+    def boxes(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """The start's box of positions, ``((low, high),)``, each ``(3, n)``."""
+        return ((self.low, self.high),)
+
     def initial(self) -> InitialState:
         """The start of the model: the fixed positions, or the middle of the ranges."""
         middle = (self.low + self.high) / 2
@@ -234,6 +239,11 @@ class StartMix:
     def is_fixed(self) -> bool:
         """Whether every scenario starts at the same positions (never, for a mix)."""
         return False
+
+    @property
+    def boxes(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """Every part's box of positions, ``(low, high)`` pairs of shape ``(3, n)``."""
+        return tuple(box for part in self.parts for box in part.boxes)
 
     def initial(self) -> InitialState:
         """The start of the model: the first part's."""

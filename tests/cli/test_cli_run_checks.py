@@ -216,3 +216,29 @@ def test_a_setup_network_trace_shorter_than_the_runs_is_refused_before_any_work(
         f"teleopkit: error: Invalid value for '--setup': the delay trace ends at 5 s, before the "
         f"{run} s run does: record a longer trace or shorten the run")
     assert not out.exists() and not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("command", [["train", "--steps", "1", "--envs", "1"],
+                                     ["search-law", "--generations", "1", "--scenarios", "1"],
+                                     ["evaluate", "--policy", "law", "--scenarios", "1"]])
+def test_the_commands_that_simulate_take_the_step(tmp_path, capsys, command):
+    """train, search-law and evaluate integrate with --dt: a step beyond the integrator's
+    stability limit is refused naming it (the default step would pass)."""
+    if command[0] == "train":
+        pytest.importorskip("torch")
+    assert main([*command, "--out", str(tmp_path / "out"), "--dt", "0.005"]) == 2
+    assert "dt = 5 ms is beyond the integrator's stability limit" in one_error_line(capsys)
+
+
+def test_evaluate_refuses_a_policy_for_another_number_of_joints(tmp_path, capsys):
+    arm = {"lengths": [0.3, 0.3, 0.3], "masses": [0.5, 0.4, 0.3]}
+    data = {"plant": {"local_arm": arm, "remote_arm": arm,
+                      "joints": {"stiffness": [100.0] * 3, "rotor_inertia": [0.3] * 3},
+                      "local_gains": {"stiffness": [25.0] * 3, "damping": [10.0] * 3}},
+            "operator": {"stiffness": 10.0, "damping": 2.0, "motion": "still"}}
+    path = tmp_path / "arm3.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert main(["evaluate", "--policy", "law", "--setup", str(path),
+                 "--out", str(tmp_path / "out")]) == 2
+    message = one_error_line(capsys)
+    assert "law tunes the gains of 2 joints, the setup's arms have 3" in message

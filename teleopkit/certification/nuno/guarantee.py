@@ -13,8 +13,13 @@ never negative). Every term of :math:`V` is non-negative, so each one is bounded
 - local speed: :math:`\tfrac12 \lambda_{min}(M_l) |\dot q_l|^2 \le k_l \bar V`;
 - position mismatch: :math:`\tfrac12 s_i (q_{l,i} - \theta_i)^2 \le \bar V`.
 
-:math:`V(0)` is evaluated at a start (the plant's initial positions, velocities zero, the past
-held) with the smallest stiffness of the class, which makes it largest.
+:math:`V(0)` is evaluated at a start (initial positions, velocities zero, the past held) with
+the smallest stiffness of the class, which makes it largest. A start drawn from ranges, or one
+of several starts (a setup's :class:`~teleopkit.setup.StartSpec` or
+:class:`~teleopkit.setup.StartMix`), takes the largest :math:`V(0)` over all of them: at rest
+every term of :math:`V` is convex and belongs to one joint, so the largest value lies at a
+corner of each box of positions, every joint at its own worst corner (exact, ``8 n``
+evaluations per box).
 
 A plant whose parameters lie in ranges (:class:`~teleopkit.model.plant_range.PlantRange`) gets
 bounds that hold for every plant of the ranges: at rest the storage's remote part is the joint
@@ -25,13 +30,13 @@ masses and link inertias at their lower ends (the kinetic energy grows with each
 the ends and middles of any ranged lengths and centres of mass (a grid, as the configurations
 are). Several plants get the largest bound of each. A certificate does not
 record a start (no stability proof depends on one):
-:meth:`~teleopkit.certification.gain_certificate.GainCertificate.guarantee` takes it, the
-paper's by default. The bounds hold for a passive
+:meth:`~teleopkit.certification.gain_certificate.GainCertificate.guarantee` takes it (the
+paper's by default, for two joints). The bounds hold for a passive
 operator and environment (an operator holding its reference at the origin: a moving reference
 is an active source of energy, whose work the storage does not count).
 
 A tank can be asked for as the deflection it allows: ``tank:0.5rad`` is the tank whose bound
-lets the spring deflect by at most 0.5 rad from the plant's start (:func:`resolve_tank`).
+lets the spring deflect by at most 0.5 rad from the start (:func:`resolve_tank`).
 """
 
 from __future__ import annotations
@@ -50,30 +55,55 @@ from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.dynamics import mass_matrix
 from teleopkit.model.params import PlanarArm, TeleoperatorParams
 from teleopkit.model.plant_range import PlantRange, value_of, with_values
+from teleopkit.setup.start import StartMix, StartSpec
 from teleopkit.sim.energy import local_energy, remote_energy
 from teleopkit.sim.state import StateLayout
 
-__all__ = ["StorageGuarantee", "resolve_tank", "start_storage", "storage_guarantee"]
+__all__ = ["Start", "StorageGuarantee", "resolve_tank", "start_storage", "storage_guarantee"]
 
 
-def _start_state(params: TeleoperatorParams) -> np.ndarray:
-    """The plant's initial state as a state vector (velocities and integrals zero)."""
+Start = StartSpec | StartMix
+"""Starts a guarantee holds from: one box of initial positions, or several."""
+
+
+def _storage_at(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
+                positions: np.ndarray) -> np.ndarray:
+    """``V(0)`` at rest at initial positions ``(..., 3, n)`` (rows ``q_l, q_r, theta``)."""
     layout = StateLayout(params.n_joints)
-    state = np.zeros(layout.size)
-    state[layout.slice("ql")] = params.initial.local
-    state[layout.slice("qr")] = params.initial.remote
-    state[layout.slice("theta")] = params.initial.motor
-    return state
+    state = np.zeros((*positions.shape[:-2], layout.size))
+    for row, name in enumerate(("ql", "qr", "theta")):
+        state[..., layout.slice(name)] = positions[..., row, :]
+    stretch = positions[..., 0, :] - positions[..., 2, :]
+    return (local_energy(params, state) / storage.normaliser
+            + remote_energy(params, state) / kappa
+            + 0.5 * np.sum(np.array(storage.shape) * stretch**2, axis=-1))
+
+
+def _largest_in_box(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
+                    low: np.ndarray, high: np.ndarray) -> float:
+    """The largest ``V(0)`` over a box of initial positions (exact).
+
+    At rest every term of ``V`` (the operator's and the joint springs, a wall's spring, the
+    stretch term) is convex and belongs to one joint: the largest value is at a corner of the
+    box, each joint at its own worst corner of its three positions.
+    """
+    corners = np.array(list(itertools.product((False, True), repeat=3)))  # (8, 3)
+    worst = low.copy()
+    for i in range(params.n_joints):
+        candidates = np.repeat(worst[None], len(corners), axis=0)
+        candidates[:, :, i] = np.where(corners, high[:, i], low[:, i])
+        worst = candidates[int(np.argmax(_storage_at(params, storage, kappa, candidates)))]
+    return float(_storage_at(params, storage, kappa, worst))
 
 
 def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
-                  ranges: PlantRange | None = None) -> float:
-    """``V(0)`` at the plant's initial state with the stiffness ``kappa``.
+                  ranges: PlantRange | None = None, start: Start | None = None) -> float:
+    """``V(0)`` at rest at the start with the stiffness ``kappa``: its largest value.
 
     Parameters
     ----------
     params : TeleoperatorParams
-        Teleoperator (its initial state).
+        Teleoperator (its initial state unless ``start`` is given).
     storage : ScheduledStorage
         The storage.
     kappa : float
@@ -81,18 +111,21 @@ def start_storage(params: TeleoperatorParams, storage: ScheduledStorage, kappa: 
     ranges : PlantRange, optional
         Ranges of the remote plant's parameters around ``params``: the largest ``V(0)`` over
         them (at their upper ends, see the module's text).
+    start : StartSpec or StartMix, optional
+        Initial positions, fixed or ranges: the largest ``V(0)`` over all of them (exact: at
+        a corner of each box). Default: ``params.initial``.
 
     Returns
     -------
     float
         The storage at ``t = 0`` (the double integrals are zero: the past is held).
     """
-    state = _start_state(params)
-    shape = np.array(storage.shape)
-    stretch = np.array(params.initial.local) - np.array(params.initial.motor)
-    remote = max(float(remote_energy(plant, state)) for plant in _ends(params, ranges))
-    return float(local_energy(params, state) / storage.normaliser
-                 + remote / kappa + 0.5 * np.sum(shape * stretch**2))
+    boxes = (start or StartSpec.fixed(params.initial)).boxes
+    if boxes[0][0].shape[1] != params.n_joints:
+        raise ValueError(f"the start has {boxes[0][0].shape[1]} joints, the plant "
+                         f"{params.n_joints}")
+    return max(_largest_in_box(plant, storage, kappa, low, high)
+               for plant in _ends(params, ranges) for low, high in boxes)
 
 
 def _ends(params: TeleoperatorParams, ranges: PlantRange | None) -> tuple[TeleoperatorParams, ...]:
@@ -101,7 +134,7 @@ def _ends(params: TeleoperatorParams, ranges: PlantRange | None) -> tuple[Teleop
 
 
 def _softest_starts(params: TeleoperatorParams, storage: ScheduledStorage, kappa: float,
-                    ranges: PlantRange | None) -> np.ndarray:
+                    ranges: PlantRange | None, start: Start | None) -> np.ndarray:
     """Per joint ``i``, ``V(0)`` where joint ``i``'s deflection bound is largest over the ranges.
 
     The bound grows as ``V(0) / S_i``, and ``V(0)`` is linear in every joint's stiffness: its
@@ -109,11 +142,11 @@ def _softest_starts(params: TeleoperatorParams, storage: ScheduledStorage, kappa
     """
     n = params.n_joints
     if not ranges or "joints.stiffness" not in ranges.bounds:
-        return np.full(n, start_storage(params, storage, kappa, ranges))
+        return np.full(n, start_storage(params, storage, kappa, ranges, start))
     low, high = ranges.bounds["joints.stiffness"]
     stiffest = ranges.corners(params)[1]
     return np.array([start_storage(with_values(stiffest, {"joints.stiffness": (
-        *high[:i], low[i], *high[i + 1:])}), storage, kappa) for i in range(n)])
+        *high[:i], low[i], *high[i + 1:])}), storage, kappa, start=start) for i in range(n)])
 
 
 def _least(params: TeleoperatorParams, ranges: PlantRange | None, name: str) -> np.ndarray:
@@ -145,14 +178,14 @@ def _least_inertia(arm: PlanarArm, samples: int = 721) -> float:
     """The smallest eigenvalue of ``M(q)`` over the arm's configurations (a grid of angles)."""
     n = arm.n_joints
     grid = np.linspace(-math.pi, math.pi, samples if n == 2 else 64)
-    angles = np.stack(np.meshgrid(*([grid] * (n - 1)), indexing="ij"), -1).reshape(-1, n - 1)
-    q = np.concatenate([np.zeros((len(angles), 1)), angles], axis=1)
+    angles = np.array(list(itertools.product(grid, repeat=n - 1)), dtype=float)
+    q = np.concatenate([np.zeros((len(angles), 1)), angles], axis=1)  # M(q) is free of q_1
     return float(np.linalg.eigvalsh(mass_matrix(arm, q))[:, 0].min())
 
 
 @dataclass(frozen=True)
 class StorageGuarantee:
-    """The bounds a scheduled class's storage gives from the plant's start.
+    """The bounds a scheduled class's storage gives from a start.
 
     Attributes
     ----------
@@ -229,7 +262,7 @@ class StorageGuarantee:
         def joints(values: tuple[float, ...]) -> str:
             return ", ".join(f"{v:.3g}" for v in values)
 
-        return (f"from the plant's start (V(0) = {self.storage_start:.4g}, bound "
+        return (f"from the start (V(0) = {self.storage_start:.4g}, bound "
                 f"{self.storage_bound:.4g}, kappa <= {self.kappa_max:g}): spring deflection "
                 f"<= {joints(self.deflection)} rad, motor speed <= {joints(self.motor_speed)} "
                 f"rad/s, link speed <= {self.link_speed:.3g} rad/s, local speed <= "
@@ -246,7 +279,8 @@ def _bound_factor(variation: GainVariation, start: float) -> float:
 
 def storage_guarantee(params: TeleoperatorParams, storage: ScheduledStorage,
                       allowed: ScheduledSet, variation: GainVariation,
-                      ranges: PlantRange | None = None) -> StorageGuarantee:
+                      ranges: PlantRange | None = None, start: Start | None = None,
+                      ) -> StorageGuarantee:
     """The bounds of :class:`StorageGuarantee` for a scheduled class.
 
     Parameters
@@ -262,23 +296,26 @@ def storage_guarantee(params: TeleoperatorParams, storage: ScheduledStorage,
     ranges : PlantRange, optional
         Ranges of the remote plant's parameters around ``params``: bounds for every plant of
         them (see the module's text).
+    start : StartSpec or StartMix, optional
+        Initial positions, fixed or ranges: bounds from every one of them. Default:
+        ``params.initial``.
 
     Returns
     -------
     StorageGuarantee
         The bounds.
     """
-    start = start_storage(params, storage, allowed.kappa_low, ranges)
-    bound = _bound_factor(variation, start)
+    largest = start_storage(params, storage, allowed.kappa_low, ranges, start)
+    bound = _bound_factor(variation, largest)
     kappa = allowed.kappa_high
     energy = kappa * bound  # E_r <= kappa V_bar
     springs = [kappa * _bound_factor(variation, joint_start) for joint_start in
-               _softest_starts(params, storage, allowed.kappa_low, ranges)]
+               _softest_starts(params, storage, allowed.kappa_low, ranges, start)]
     spring = _least(params, ranges, "joints.stiffness")
     rotor = _least(params, ranges, "joints.rotor_inertia")
     shape = np.array(storage.shape)
     return StorageGuarantee(
-        start, bound, kappa, tuple(np.sqrt(2 * np.array(springs) / spring).tolist()),
+        largest, bound, kappa, tuple(np.sqrt(2 * np.array(springs) / spring).tolist()),
         tuple(np.sqrt(2 * energy / rotor).tolist()),
         math.sqrt(2 * energy / _least_remote_inertia(params, ranges)),
         math.sqrt(2 * storage.normaliser * bound / _least_inertia(params.local_arm)),
@@ -287,7 +324,8 @@ def storage_guarantee(params: TeleoperatorParams, storage: ScheduledStorage,
 
 def resolve_tank(params: TeleoperatorParams | Sequence[TeleoperatorParams],
                  storage: ScheduledStorage, allowed: ScheduledSet, variation: GainVariation,
-                 ranges: Sequence[PlantRange] = ()) -> GainVariation:
+                 ranges: Sequence[PlantRange] = (), start: Start | None = None,
+                 ) -> GainVariation:
     """A tank asked for as a deflection (``tank:0.5rad``) as its initial level ``T0``.
 
     The level is the one whose bound ``V(0) + T0`` allows that spring deflection at the class's
@@ -307,6 +345,9 @@ def resolve_tank(params: TeleoperatorParams | Sequence[TeleoperatorParams],
         The class; returned unchanged unless it is a tank given in ``rad``.
     ranges : sequence of PlantRange, optional
         The range of each plant; none by default.
+    start : StartSpec or StartMix, optional
+        Initial positions, fixed or ranges: the deflection holds from every one of them.
+        Default: each plant's ``initial``.
 
     Returns
     -------
@@ -323,7 +364,7 @@ def resolve_tank(params: TeleoperatorParams | Sequence[TeleoperatorParams],
     plants = [params] if isinstance(params, TeleoperatorParams) else list(params)
     levels, least = [], 0.0
     for plant, interval in zip(plants, tuple(ranges) or (None,) * len(plants), strict=True):
-        starts = _softest_starts(plant, storage, allowed.kappa_low, interval)
+        starts = _softest_starts(plant, storage, allowed.kappa_low, interval, start)
         spring = _least(plant, interval, "joints.stiffness")
         levels.append(float(np.min(spring * variation.value**2 / (2 * allowed.kappa_high)
                                    - starts)))

@@ -20,7 +20,7 @@ from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
 from teleopkit.certification.nuno.condition import NUNO_EPS, nuno_joint_margins, nuno_polytope
-from teleopkit.certification.nuno.guarantee import resolve_tank
+from teleopkit.certification.nuno.guarantee import Start, resolve_tank
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
 from teleopkit.model.params import TeleoperatorParams, plant_record
@@ -102,11 +102,13 @@ def shape_rows(shape: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, tuple[
 
 def plants_tank(plants: Sequence[TeleoperatorParams], box: GainBox, tl_max: float,
                 tr_max: float, variation: GainVariation | str,
-                ranges: Sequence[PlantRange] = ()) -> GainVariation:
-    """The class, with a tank asked for in ``rad`` sized for every plant and range.
+                ranges: Sequence[PlantRange] = (), start: Start | None = None,
+                ) -> GainVariation:
+    """The class, with a tank asked for in ``rad`` sized for every plant, range and start.
 
     ``tank:Drad`` is the tank whose bound allows ``D`` rad of spring deflection on the first
-    plant; certifying several plants, or a plant's ranges, takes the smallest level over them
+    plant from its start; certifying several plants, or a plant's ranges, or from starts drawn
+    from ranges (or several starts), takes the smallest level over them
     (:func:`~teleopkit.certification.nuno.guarantee.resolve_tank`), which the certificate of
     the first plant then carries as ``tank:T0``.
 
@@ -122,6 +124,9 @@ def plants_tank(plants: Sequence[TeleoperatorParams], box: GainBox, tl_max: floa
         The class; returned parsed, and unchanged unless it is a tank given in ``rad``.
     ranges : sequence of PlantRange, optional
         The range of each plant; none by default.
+    start : StartSpec or StartMix, optional
+        Initial positions, fixed or ranges (a setup's start); each plant's ``initial`` by
+        default.
 
     Returns
     -------
@@ -134,7 +139,7 @@ def plants_tank(plants: Sequence[TeleoperatorParams], box: GainBox, tl_max: floa
         return variation
     storage = ScheduledStorage.for_plant(plants[0], tl_max, tr_max)
     allowed = scheduled_set(plants[0], storage, box, variation)
-    return resolve_tank(plants, storage, allowed, variation, ranges)
+    return resolve_tank(plants, storage, allowed, variation, ranges, start)
 
 
 def certify_scheduled(params: TeleoperatorParams, box: GainBox, tl_max: float, tr_max: float,
