@@ -99,12 +99,19 @@ def _delays(spec: str) -> Callable[[Setup], Setup]:
     return lambda setup: setup.with_delay(spec)
 
 
-def _plant(setup: Setup) -> Setup:
-    arm = setup.params.remote_arm
-    heavier = PlanarArm(arm.lengths, tuple(1.5 * m for m in arm.masses))
-    params = replace(setup.params, remote_arm=heavier,
-                     joints=replace(setup.params.joints, stiffness=(60.0, 60.0)))
-    return replace(setup, params=params)
+def _remote(masses: float, stiffness: float) -> Callable[[Setup], Setup]:
+    """The remote arm's link masses scaled by ``masses``, its joints' stiffness ``stiffness``."""
+    def change(setup: Setup) -> Setup:
+        arm = setup.params.remote_arm
+        scaled = PlanarArm(arm.lengths, tuple(masses * m for m in arm.masses))
+        return replace(setup, params=replace(
+            setup.params, remote_arm=scaled,
+            joints=replace(setup.params.joints, stiffness=(stiffness, stiffness))))
+    return change
+
+
+_plant = _remote(1.5, 60.0)
+"""The heavier, softer remote arm: link masses x1.5, joint stiffness 60 N m/rad."""
 
 
 def _wall(setup: Setup) -> Setup:
@@ -182,15 +189,15 @@ def families(folder: Path) -> dict[str, Setup]:
         return setup
 
     still = (0.0, 0.0)
+    smooth = _motion("smooth", amplitude=(0.3, 1.5), frequency=(0.1, 1.0), decay=(0.0, 0.0),
+                     components=3)
     return {
         "paper benchmark": PAPER,
         "operator that does not decay": both(_sines(decays=still)),
         "larger operator amplitudes": both(_sines(scale=1.5)),
         "faster operator x2": both(_sines(speed=2.0)),
         "faster operator x3": both(_sines(speed=3.0)),
-        "random smooth operator": both(_motion("smooth", amplitude=(0.3, 1.5),
-                                               frequency=(0.1, 1.0), decay=(0.0, 0.0),
-                                               components=3)),
+        "random smooth operator": both(smooth),
         "start at rest": both(_start("rest")),
         "start without deflection": both(_start("aligned")),
         "random starts": both(_start(spread=0.5)),
@@ -200,6 +207,16 @@ def families(folder: Path) -> dict[str, Setup]:
         "constant delays 0.3 s": both(_delays("constant:0.3")),
         "switching delays 0-1 s": both(_delays("switching:0:1:50ms")),
         "recorded-style delay trace": both(_trace(folder)),
+        # measured later (2026-12-07), after the laws were searched
+        "slower operator x0.5": both(_sines(speed=0.5)),
+        "smaller operator amplitudes x0.5": both(_sines(scale=0.5)),
+        "start at rest, operator that does not decay": both(_start("rest"), _sines(decays=still)),
+        "random smooth operator from rest": both(smooth, _start("rest")),
+        "random starts 0.3 rad, switching delays": both(_start(spread=0.3),
+                                                        _delays("switching:0:1:50ms")),
+        "lighter, stiffer remote arm": both(_remote(0.7, 150.0)),
+        "sinusoidal delays 0.5+-0.4 s": both(_delays("sine:0.5:0.4:0.2")),
+        "constant delays 0.8 s": both(_delays("constant:0.8")),
         MIXTURE: _mixture(folder),
         PLANT_MIXTURE: _plant_mixture(folder),
         RANGE_MIXTURE: _ranged(_mixture(folder)),
