@@ -21,7 +21,11 @@ and scores each law by its cost relative to the start gains on each scenario, av
 scenario that costs little weighs as much as one that costs much, so a law that helps the
 cheap conditions cannot hide harm on them behind a costly one, and the other way round. A
 ``harm`` weight adds the mean excess over the start gains (``max(0, relative - 1)``, 1 by
-default): the search then pays for every scenario a law makes worse. After every ``validate_every``
+default): the search then pays for every scenario a law makes worse. With ``references``
+(constant gains spread over the box, run on the same scenarios) the reference of each scenario
+is the cheapest of them and of the start: the objective is then the law's excess over the best
+constant gains for that scenario, chosen with hindsight, which no family's own best constant
+gains can beat on average. After every ``validate_every``
 generations the distribution's mean is run on fixed validation scenarios, next to the start
 gains; the best by the same objective there is kept, as the TD3 trainer keeps its best actor.
 The start itself (the law at ``W = 0, b = 0``, objective 1 against itself) is the first
@@ -84,6 +88,14 @@ class LawSearchConfig:
         Fixed validation scenarios (seed ``validation_seed``, as the TD3 trainer's).
     validation_seed : int
         Their seed.
+    references : tuple of tuple of float
+        Constant gains (``2 n`` values each) run beside the laws on every generation's
+        scenarios: each scenario's cheapest of them and of the start gains is the reference the
+        objective measures the laws against (empty, the shipped law's recipe: the start gains
+        alone). Spread over the box, they make the objective a law's excess over what the best
+        constant gains for each scenario would have cost, so that scenarios whose best gains lie
+        far from the start (a small operator from rest: near the softest corner) count as much
+        as the others. Validation still compares with the start gains.
     """
 
     generations: int = 40
@@ -95,6 +107,7 @@ class LawSearchConfig:
     validate_every: int = 5
     validation_scenarios: int = 16
     validation_seed: int = 4_242
+    references: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("generations", "scenarios", "validate_every", "validation_scenarios"):
@@ -106,6 +119,10 @@ class LawSearchConfig:
             raise ValueError(f"sigma must be positive, got {self.sigma}")
         if not (math.isfinite(self.harm) and self.harm >= 0):
             raise ValueError(f"harm must be finite and non-negative, got {self.harm}")
+        references = tuple(tuple(float(g) for g in gains) for gains in self.references)
+        if any(not (math.isfinite(g) and g > 0) for gains in references for g in gains):
+            raise ValueError(f"references must be positive finite gains, got {references}")
+        object.__setattr__(self, "references", references)
 
 
 @dataclass(frozen=True)
@@ -301,6 +318,16 @@ def _costs(controller: Any, scenario: Scenario, config: FlexTeleopConfig,
     return costs.reshape(count, scenario.batch), unsafe
 
 
+def _reference(start: np.ndarray, references: np.ndarray, scenario: Scenario,
+               config: FlexTeleopConfig) -> tuple[np.ndarray, int]:
+    """Per scenario, the cheapest of the start gains' ``start`` costs and the references'."""
+    if not len(references):
+        return start, 0
+    lanes = np.repeat(references, scenario.batch, axis=0)  # as Scenario.repeat lays them out
+    costs, unsafe = episode_costs(lambda obs: lanes, scenario.repeat(len(references)), config)
+    return np.minimum(start, costs.reshape(len(references), -1).min(axis=0)), unsafe
+
+
 def _objective(costs: np.ndarray, start: np.ndarray, harm: float) -> np.ndarray:
     """Per law: mean cost relative to the start gains', plus ``harm`` times the mean excess."""
     relative = costs / start
@@ -381,6 +408,10 @@ def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
     if start.shape != low.shape or not np.all(start > low):
         raise ValueError(f"the law's start {start.tolist()} must lie above the box's lower "
                          f"corner {low.tolist()}")
+    references = np.array(settings.references, dtype=float).reshape(-1, low.size) if all(
+        len(gains) == low.size for gains in settings.references) else None
+    if references is None:
+        raise ValueError(f"references need {low.size} gains each, got {settings.references}")
     span = (start - low) / _LN2
     seen = _observed(config, start, low, settings)
     size = low.size * columns.size + low.size  # W on the law's columns, then b
@@ -411,7 +442,9 @@ def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
         costs, count = _costs(laws(np.vstack([np.zeros(size), thetas])), scenario, config,
                               len(thetas) + 1)
         unsafe += count
-        objective = _objective(costs[1:], costs[0], settings.harm)
+        reference, count = _reference(costs[0], references, scenario, config)
+        unsafe += count
+        objective = _objective(costs[1:], reference, settings.harm)
         search.tell(list(thetas), objective.tolist())
         _log.info("gain law search: generation %d of %d, best objective %.4f", generation,
                   settings.generations, float(objective.min()))

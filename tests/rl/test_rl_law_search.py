@@ -17,6 +17,7 @@ from teleopkit.rl.evaluation import closed_loop
 from teleopkit.rl.law_search import (
     LawSearchConfig,
     _Laws,
+    _reference,
     _Seen,
     law_features,
     law_under,
@@ -129,10 +130,38 @@ def test_a_search_that_finds_no_better_law_keeps_its_start():
 @pytest.mark.parametrize(("settings", "message"), [
     ({"population": 1}, "population"), ({"sigma": 0.0}, "sigma"), ({"harm": -1.0}, "harm"),
     ({"harm": float("inf")}, "harm must be finite"), ({"harm": float("nan")}, "harm"),
-    ({"generations": 0}, "generations"), ({"sigma": float("nan")}, "sigma")])
+    ({"generations": 0}, "generations"), ({"sigma": float("nan")}, "sigma"),
+    ({"references": ((1.0, float("nan"), 3.0, 3.0),)}, "references"),
+    ({"references": ((1.0, -1.0, 3.0, 3.0),)}, "references")])
 def test_bad_settings_are_refused(settings, message):
     with pytest.raises(ValueError, match=message):
         LawSearchConfig(**settings)
+
+
+def test_the_reference_of_a_scenario_is_the_cheapest_constant_gains_on_it():
+    """Each scenario's reference: the cheapest of the start gains and the references, each
+    reference's cost recomputed on its own by the environment's rollout."""
+    scenario = SHORT.setup.scenarios(np.random.default_rng(5), 3)
+    references = np.array([[1.3, 1.3, 3.3, 3.3], [8.0, 8.0, 22.0, 22.0]])
+    start = -closed_loop(lambda obs: np.tile(START, (len(obs), 1)), scenario,
+                         SHORT).reward.sum(axis=0)
+    each = [-closed_loop(lambda obs, g=g: np.tile(g, (len(obs), 1)), scenario,
+                         SHORT).reward.sum(axis=0) for g in references]
+    reference, unsafe = _reference(start, references, scenario, SHORT)
+    np.testing.assert_allclose(reference, np.min([start, *each], axis=0), rtol=1e-9)
+    assert unsafe == 0 and np.any(reference < start)  # the soft gains beat the start somewhere
+    assert _reference(start, np.empty((0, 4)), scenario, SHORT)[0] is start
+
+
+def test_a_search_against_references_records_them():
+    references = ((1.3, 1.3, 3.3, 3.3),)
+    settings = LawSearchConfig(generations=1, population=2, scenarios=2, validate_every=1,
+                               validation_scenarios=2, references=references)
+    result = search_gain_law(START, settings, SHORT, progress=False)
+    assert result.policy.metadata["law_search"]["references"] == references
+    with pytest.raises(ValueError, match="references need 4 gains each"):
+        search_gain_law(START, replace(settings, references=((1.0, 2.0),)), SHORT,
+                        progress=False)
 
 
 def test_a_start_on_the_box_floor_is_refused():
