@@ -173,11 +173,11 @@ class GainCertificate:
         if start is None and self.box.n_joints != 2:
             raise ValueError(f"a guarantee of a {self.box.n_joints}-joint plant needs its start "
                              "(the paper's start has two joints)")
-        starts = StartSpec.fixed(start or InitialState()) if not isinstance(
-            start, StartSpec | StartMix) else start
+        if not isinstance(start, StartSpec | StartMix):
+            start = StartSpec.fixed(start or InitialState())
         return StorageGuarantee.worst([
             storage_guarantee(plant_params(record), storage, allowed, self.variation, interval,
-                              starts)
+                              start)
             for record, interval in zip((self.plant, *self.other_plants), self.ranges,
                                         strict=True)])
 

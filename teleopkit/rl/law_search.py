@@ -408,10 +408,9 @@ def search_gain_law(start: np.ndarray, settings: LawSearchConfig | None = None,
     if start.shape != low.shape or not np.all(start > low):
         raise ValueError(f"the law's start {start.tolist()} must lie above the box's lower "
                          f"corner {low.tolist()}")
-    references = np.array(settings.references, dtype=float).reshape(-1, low.size) if all(
-        len(gains) == low.size for gains in settings.references) else None
-    if references is None:
+    if any(len(gains) != low.size for gains in settings.references):
         raise ValueError(f"references need {low.size} gains each, got {settings.references}")
+    references = np.array(settings.references, dtype=float).reshape(-1, low.size)
     span = (start - low) / _LN2
     seen = _observed(config, start, low, settings)
     size = low.size * columns.size + low.size  # W on the law's columns, then b
