@@ -1,7 +1,7 @@
 """The gain certificate: a verdict on a box of remote gains, as an object and as JSON.
 
 A certificate is a value: it names what it certifies (the plant, with a fingerprint, from
-:func:`~teleopkit.model.params.plant_record`; the delay bounds; the gain class; the box) and
+:func:`~teleopkit.model.records.plant_record`; the delay bounds; the gain class; the box) and
 what it claims. :meth:`GainCertificate.check` refuses it, in one line, for another plant or for
 delays that can exceed its bounds. Whether the claim holds is re-checked above it, by
 :mod:`teleopkit.certification.verification`.
@@ -23,8 +23,9 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.nuno.guarantee import Start, StorageGuarantee, storage_guarantee
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
-from teleopkit.model.params import InitialState, TeleoperatorParams, plant_params
+from teleopkit.model.params import InitialState, TeleoperatorParams
 from teleopkit.model.plant_range import PlantRange
+from teleopkit.model.records import plant_params
 from teleopkit.setup.start import StartMix, StartSpec
 
 __all__ = ["DelayBoundError", "GainCertificate"]
@@ -79,7 +80,7 @@ class GainCertificate:
         Method-specific data (for the LMI, the solver's certificate as JSON-ready data); kept
         as a read-only view.
     plant : mapping
-        The plant certified (:func:`~teleopkit.model.params.plant_record`); read-only.
+        The plant certified (:func:`~teleopkit.model.records.plant_record`); read-only.
     delay_lower : tuple of float
         ``(T_l_min, T_r_min)``: the delays certified lie in ``[T_i_min, T_i*]`` (0: from 0).
     other_plants : tuple of mapping

@@ -18,7 +18,8 @@ from teleopkit._version import __version__
 from teleopkit.certification.delay_bounds import check_delay_bounds, check_delay_floors
 from teleopkit.certification.gain_classes import GainVariation, parse_gain_variation
 from teleopkit.certification.gain_sets import GainBox
-from teleopkit.model.params import TeleoperatorParams, plant_record
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.records import plant_record
 
 __all__ = ["Question"]
 

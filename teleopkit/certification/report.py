@@ -6,7 +6,8 @@ from collections.abc import Sequence
 
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.nuno.guarantee import Start
-from teleopkit.model.params import InitialState, PlanarArm, TeleoperatorParams, plant_record
+from teleopkit.model.params import InitialState, PlanarArm, TeleoperatorParams
+from teleopkit.model.records import plant_record
 from teleopkit.setup.reading import listed
 
 __all__ = ["CLASSES_PAGE", "certificate_table"]

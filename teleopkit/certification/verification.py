@@ -25,8 +25,9 @@ import numpy as np
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.methods import certify_with
 from teleopkit.certification.question import Question
-from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
+from teleopkit.model.params import TeleoperatorParams
 from teleopkit.model.plant_range import PlantRange
+from teleopkit.model.records import plant_params, plant_record
 
 __all__ = ["check_certificate", "cover_plants", "load_certificate", "verify_certificate"]
 

@@ -19,8 +19,8 @@ from teleopkit.cli.options import (
     run_duration,
     setup_option,
 )
-from teleopkit.model.params import PLANT_LABELS
 from teleopkit.model.plant_range import value_of
+from teleopkit.model.records import PLANT_LABELS
 from teleopkit.setup.reading import listed
 from teleopkit.sim.timing import CONTROL_PERIOD
 

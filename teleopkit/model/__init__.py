@@ -1,6 +1,7 @@
 """The teleoperator's model: parameters, rigid-body dynamics, P+d laws and the linearisation.
 
-Parameters are frozen dataclasses (:mod:`teleopkit.model.params`), never changed during a run.
+Parameters are frozen dataclasses (:mod:`teleopkit.model.params`), never changed during a run;
+:mod:`~teleopkit.model.records` writes the plant a certificate depends on as JSON-ready data.
 :mod:`~teleopkit.model.dynamics` gives the inertia, Coriolis matrix and energies of planar arms,
 :mod:`~teleopkit.model.laws` the controllers, operator and environment torques, and
 :mod:`~teleopkit.model.linearize` the closed loop linearised at rest as a delay system for

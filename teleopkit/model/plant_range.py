@@ -21,13 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from teleopkit.model.params import (
-    PLANT_LABELS,
-    TeleoperatorParams,
-    plant_mismatch,
-    plant_params,
-    plant_record,
-)
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.records import PLANT_LABELS, plant_mismatch, plant_params, plant_record
 
 __all__ = ["RANGED", "PlantRange", "value_of", "with_values"]
 
@@ -189,7 +184,7 @@ class PlantRange:
         Parameters
         ----------
         nominal : TeleoperatorParams or mapping
-            The nominal plant, or its :func:`~teleopkit.model.params.plant_record`.
+            The nominal plant, or its :func:`~teleopkit.model.records.plant_record`.
         params : TeleoperatorParams
             A plant.
 
@@ -207,7 +202,7 @@ class PlantRange:
         Parameters
         ----------
         nominal : TeleoperatorParams or mapping
-            The nominal plant, or its :func:`~teleopkit.model.params.plant_record`.
+            The nominal plant, or its :func:`~teleopkit.model.records.plant_record`.
         params : TeleoperatorParams
             A plant.
 

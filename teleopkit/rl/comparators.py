@@ -32,7 +32,8 @@ import numpy as np
 from teleopkit.certification.certifier import certify_gains
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.verification import cover_plants
-from teleopkit.model.params import TeleoperatorParams, plant_params
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.records import plant_params
 from teleopkit.rl.baselines import (
     BASELINE_SEED,
     best_semi_active,

@@ -44,16 +44,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from teleopkit.model.params import (
-    PLANT_LABELS,
-    ElasticJoints,
-    PDGains,
-    PlanarArm,
-    TeleoperatorParams,
-    Wall,
-    json_ready,
-)
+from teleopkit.model.params import ElasticJoints, PDGains, PlanarArm, TeleoperatorParams, Wall
 from teleopkit.model.plant_range import Interval, PlantRange
+from teleopkit.model.records import PLANT_LABELS, json_ready
 from teleopkit.setup.network import Channel, Network, spec_reach
 from teleopkit.setup.operator import MotionSpec, OperatorSetup
 from teleopkit.setup.reading import Node, SetupError, listed, load_document

@@ -15,7 +15,8 @@ from teleopkit.certification.gain_sets import GainBox, GainPolytope
 from teleopkit.certification.lmi.cover import cover_certificate
 from teleopkit.certification.lmi.proof import check_proof, cover_proof
 from teleopkit.certification.lmi.systems import DelayQuestion
-from teleopkit.model.params import ElasticJoints, plant_record
+from teleopkit.model.params import ElasticJoints
+from teleopkit.model.records import plant_record
 
 NARROW = GainBox.uniform((5.0, 10.0), (30.0, 60.0), n_joints=1)
 SET = GainPolytope.from_box(NARROW)

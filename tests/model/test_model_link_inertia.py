@@ -24,10 +24,8 @@ from teleopkit.model.params import (
     TeleoperatorParams,
     one_joint_setup,
     paper_setup,
-    plant_mismatch,
-    plant_params,
-    plant_record,
 )
+from teleopkit.model.records import plant_mismatch, plant_params, plant_record
 from teleopkit.sim.energy import local_energy, remote_energy
 
 PAPER_FINGERPRINT = "83e859b5b4c6dae9"

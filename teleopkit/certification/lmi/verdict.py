@@ -37,7 +37,8 @@ from teleopkit.certification.lmi.systems import (
 from teleopkit.certification.lmi.workers import Background, map_solves, start_workers
 from teleopkit.certification.nuno.condition import nuno_polytope, weakest_first
 from teleopkit.certification.question import Question
-from teleopkit.model.params import TeleoperatorParams, plant_params, plant_record
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.records import plant_params, plant_record
 
 __all__ = [
     "MARGIN_BUDGET",

@@ -21,7 +21,8 @@ from teleopkit.certification.delay_bounds import check_delay_bounds
 from teleopkit.certification.gain_certificate import GainCertificate
 from teleopkit.certification.gain_classes import GainVariation
 from teleopkit.certification.gain_sets import GainBox, GainPolytope
-from teleopkit.model.params import TeleoperatorParams, plant_record
+from teleopkit.model.params import TeleoperatorParams
+from teleopkit.model.records import plant_record
 
 __all__ = ["ASSUMPTIONS", "NUNO_EPS", "RATIO_CAVEAT", "certify_frozen", "nuno_delay_margin",
            "nuno_joint_margins", "nuno_polytope", "nuno_slack", "weakest_first", "worst_vertex"]

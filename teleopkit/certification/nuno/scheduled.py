@@ -23,8 +23,9 @@ from teleopkit.certification.nuno.condition import NUNO_EPS, nuno_joint_margins,
 from teleopkit.certification.nuno.guarantee import Start, resolve_tank
 from teleopkit.certification.nuno.lyapunov import ScheduledStorage
 from teleopkit.certification.scheduled_set import ScheduledSet
-from teleopkit.model.params import TeleoperatorParams, plant_record
+from teleopkit.model.params import TeleoperatorParams
 from teleopkit.model.plant_range import PlantRange
+from teleopkit.model.records import plant_record
 
 __all__ = ["TANK_REFILL", "certify_scheduled", "plants_tank", "scheduled_set", "shape_rows"]
 
