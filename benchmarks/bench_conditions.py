@@ -16,7 +16,10 @@ box (``best static``, the reference), those of the tuner's class, the tuned semi
 the tuner's own mean schedule replayed open loop, all searched for that family on its training
 scenarios (never on the held-out ones), on the same held-out scenarios. A gain law runs moved
 onto the family's certificate where that set differs from the one it was searched under
-(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays). It prints, per family and
+(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and steps aside for the
+family's best constant gains of its class where they are cheaper on the family's training
+scenarios (:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``). It
+prints, per family and
 tuner, the mean cost and the paired differences (per scenario, mean and standard error) against
 the family's best static gains of both classes and the tuner's open-loop schedule (the
 difference of the mean costs in % of the comparator's, and the mean over the scenarios of the
@@ -40,7 +43,7 @@ from teleopkit.certification.certifier import default_certificate
 from teleopkit.model.params import PlanarArm, Wall
 from teleopkit.rl.comparison import (
     REFERENCE,
-    comparators_for,
+    as_run,
     compare,
     evaluation_config,
     policy_certificate,
@@ -48,7 +51,6 @@ from teleopkit.rl.comparison import (
     tuner_label,
 )
 from teleopkit.rl.evaluation import cost_ratio, paired_difference
-from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import MotionSpec, Network, Setup, StartSpec
 from teleopkit.setup.network import Channel
@@ -231,11 +233,10 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     certificate = default_certificate(setup.params, setup.network.reached_bounds, variation,
                                       setup.plants, setup.ranges)
     config = evaluation_config(certificate, setup)
-    tuners = {label: law_under(policy, config) for label, policy in tuners.items()}
-    first = next(iter(tuners.values()))
-    found = comparators_for(first, certificate, config)
+    running, found = as_run(list(tuners.values()), certificate, config)
+    tuners = dict(zip(tuners, running, strict=True))
     for tuner_name, policy in tuners.items():
-        comparators = found if policy is first else found.for_policy(policy, config)
+        comparators = found if policy is running[0] else found.for_policy(policy, config)
         table = compare([policy], scenarios, certificate=certificate, setup=setup,
                         comparators=comparators, progress=False)
         label = tuner_label(policy, variation)
@@ -258,10 +259,12 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
         row["opening saved"] = mean.loc[REFERENCE, "cost_opening"] - mean.loc[label, "cost_opening"]
         row["rest saved"] = mean.loc[REFERENCE, "cost_rest"] - mean.loc[label, "cost_rest"]
         row["static gains"] = " ".join(f"{g:.3g}" for g in comparators.frozen_static)
+        row["stepped aside"] = "stepped_aside" in policy.metadata
         rows.append(row)
         print(f"{name:38s} {tuner_name:12s} cost {row['cost']:9.1f}  vs static "
               f"{row['vs static']:+6.1f} % (se {row['vs static se']:.1f})  vs open loop "
-              f"{row.get('vs open loop', float('nan')):+6.1f} %", flush=True)
+              f"{row.get('vs open loop', float('nan')):+6.1f} %"
+              f"{'  (stepped aside)' if row['stepped aside'] else ''}", flush=True)
     return pd.concat(frames, ignore_index=True), rows
 
 

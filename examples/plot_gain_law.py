@@ -17,7 +17,14 @@ import os
 
 import matplotlib.pyplot as plt
 
-from teleopkit.rl.comparison import REFERENCE, compare, policy_certificate, policy_observation
+from teleopkit.rl.comparison import (
+    REFERENCE,
+    as_run,
+    compare,
+    evaluation_config,
+    policy_certificate,
+    policy_observation,
+)
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, summarise, to_markdown
 from teleopkit.rl.policy import PRETRAINED_LAW, GainPolicy
@@ -71,9 +78,18 @@ plt.show()
 # :func:`~teleopkit.rl.comparison.compare` searches the comparators for the setup it is given:
 # the best constant gains of the frozen class (the reference) and of the law's class, the tuned
 # semi-active law, and the law's own mean schedule replayed open loop. On the command line:
-# ``teleopkit evaluate --policy law --setup my_robot.yaml``.
+# ``teleopkit evaluate --policy law --setup my_robot.yaml``. A law that costs more than the
+# best constant gains of its class on the setup's training scenarios (those the constant gains
+# were searched on) steps aside there and plays them: :func:`~teleopkit.rl.comparison.as_run`
+# prepares the law and the comparators as ``compare`` and ``evaluate`` run them.
+at_rest = evaluation_config(certificate, setups["start at rest"], duration=EPISODE)
+(running,), comparators = as_run([law], certificate, at_rest)
+aside = running.metadata.get("stepped_aside")
+print("the law runs as searched" if aside is None else
+      f"the law steps aside: {aside['law_cost']:.0f} against {aside['static_cost']:.0f} on "
+      f"{aside['scenarios']} training scenarios; it plays {[round(g, 2) for g in aside['static']]}")
 table = compare([law], SCENARIOS, EVAL_SEED, certificate, duration=EPISODE,
-                setup=setups["start at rest"], progress=False)
+                comparators=comparators, setup=setups["start at rest"], progress=False)
 print(to_markdown(summarise(table), baseline=REFERENCE))
 
 # %%

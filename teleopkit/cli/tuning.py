@@ -285,10 +285,13 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     searched for the same question). A gain law evaluated under a certificate with another
     set than the one it was searched under is moved onto it first: its start moves as the
     best constant gains of the setup move between the two sets (two searches, about a minute).
+    A gain law steps aside on a setup where the best constant gains of its class are cheaper
+    on the setup's training scenarios (the scenarios they were searched on): its row then
+    plays them, and a line says so.
     """
     from teleopkit.rl.comparison import (
         REFERENCE,
-        comparators_for,
+        as_run,
         compare,
         evaluation_config,
         report_preamble,
@@ -296,7 +299,6 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         tuner_rows,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
-    from teleopkit.rl.law_search import law_under
     from teleopkit.rl.policy import GainPolicy
 
     check_output_dir(out, "--out")
@@ -315,7 +317,6 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     config = evaluation_config(chosen, setup, delay, duration, dt)
     chosen = config.safety_certificate()  # extended to the setup's other plants
     check_covers_setup(chosen, config.setup, delay, *_evaluation_advice(certificate))
-    policies = [law_under(policy, config) for policy in policies]
     click.echo(f"evaluating under {chosen.gain_variation} on the certified set of the box "
                + _box_text(chosen), err=True)
 
@@ -325,7 +326,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                    "switching the semi-active law and the open-loop schedule; a few minutes) "
                    "...", err=True)
 
-    comparators = comparators_for(policies[0], chosen, config, on_search=searching)
+    policies, comparators = as_run(policies, chosen, config, on_search=searching)
+    for path, policy in zip(policy_files, policies, strict=True):
+        _say_if_aside(_policy_name(path), policy)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
                            setup=setup, dt=dt)
     rows = tuner_rows(policies, chosen.gain_variation)
@@ -356,6 +359,17 @@ def _policy_name(path: Path) -> str:
     from teleopkit.rl.policy import SHIPPED_POLICIES, resolve_policy
 
     return next((name for name in SHIPPED_POLICIES if resolve_policy(name) == path), str(path))
+
+
+def _say_if_aside(name: str, policy: GainPolicy) -> None:
+    """A line on standard error when a gain law steps aside for constant gains on the setup."""
+    aside = policy.metadata.get("stepped_aside")
+    if aside is not None:
+        gains = ", ".join(f"{g:.3g}" for g in aside["static"])
+        click.echo(f"{name} steps aside on this setup: on its {aside['scenarios']} training "
+                   f"scenarios it cost {aside['law_cost']:.5g} against {aside['static_cost']:.5g} "
+                   f"for the best constant gains of its class ({gains}), which its row plays",
+                   err=True)
 
 
 def _check_joints(name: str, policy: GainPolicy, setup: Setup) -> None:

@@ -3,7 +3,10 @@
 A trained policy records the certificate it was trained under (:func:`policy_certificate`); it
 is evaluated under that certificate unless another one that covers its class is given
 (:func:`check_covers`; a gain law is then moved onto that certificate's set,
-:func:`~teleopkit.rl.law_search.law_under`). Beside it, on the same held-out scenarios, run
+:func:`~teleopkit.rl.law_search.law_under`). A gain law steps aside for the best constant gains
+of its class on a setup where they are cheaper on the setup's training scenarios
+(:func:`~teleopkit.rl.law_search.law_or_static`, :func:`as_run`). Beside it, on the same
+held-out scenarios, run
 its comparators (:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the
 reference of every table, and of the tuner's class, the tuned semi-active law, the tuner's
 open-loop schedule, the paper's fixed gains), searched for the setup being evaluated.
@@ -13,7 +16,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -37,12 +40,12 @@ from teleopkit.rl.comparators import (
 from teleopkit.rl.env import FlexTeleopConfig
 from teleopkit.rl.evaluation import EVAL_SEED, Controller, evaluate
 from teleopkit.rl.features import observation_size
-from teleopkit.rl.law_search import law_under
+from teleopkit.rl.law_search import law_or_static, law_under
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.setup import Setup
 from teleopkit.sim.timing import DEFAULT_DT
 
-__all__ = ["REFERENCE", "Comparators", "check_covers", "comparators_for", "compare",
+__all__ = ["REFERENCE", "Comparators", "as_run", "check_covers", "comparators_for", "compare",
            "evaluation_config", "frozen_counterpart", "policy_certificate", "policy_observation",
            "report_preamble", "schedule_label", "tuner_controller", "tuner_label", "tuner_rows"]
 
@@ -150,8 +153,9 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     Parameters
     ----------
     policies : sequence of GainPolicy
-        One or more policies, each trained under a class the certificate covers; a gain law is
-        moved onto the certificate first (:func:`~teleopkit.rl.law_search.law_under`).
+        One or more policies, each trained under a class the certificate covers; a gain law
+        runs as :func:`as_run` makes it (moved onto the certificate, and stepping aside where
+        the best constant gains of its class are cheaper on the setup's training scenarios).
         Policies of one kind and observation (training seeds of one recipe) make one row;
         another kind or observation (a gain law beside a TD3 tuner) makes its own row, run with
         its own observation after the comparators (:func:`tuner_rows`). The comparators are
@@ -196,8 +200,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     for policy in policies:
         check_covers(certificate, policy)
     config = evaluation_config(certificate, setup, delay, duration, dt)
-    policies = [law_under(policy, config) for policy in policies]
-    found = comparators or comparators_for(policies[0], certificate, config)
+    policies, found = as_run(policies, certificate, config, comparators)
     tuners = {name: ([tuner_controller(p) for p in group],
                      replace(config, observation=policy_observation(group[0])))
               for name, group in tuner_rows(policies, certificate.gain_variation).items()}
@@ -212,6 +215,46 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
         frames.append(evaluate({name: controllers[name]}, scenarios, seed, config,  # type: ignore
                                settings))
     return pd.concat(frames, ignore_index=True)
+
+
+def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
+           config: FlexTeleopConfig, comparators: Comparators | None = None,
+           on_search: Callable[[], None] | None = None,
+           ) -> tuple[list[GainPolicy], Comparators]:
+    """Policies as they run on a setup, and their comparators.
+
+    A gain law is moved onto the certificate (:func:`~teleopkit.rl.law_search.law_under`) and
+    steps aside for the best constant gains of its class where they are cheaper on the setup's
+    training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`); any other policy runs
+    as it is.
+
+    Parameters
+    ----------
+    policies : sequence of GainPolicy
+        The policies (the first one's open-loop schedule is the comparators').
+    certificate : GainCertificate
+        The certificate they run under.
+    config : FlexTeleopConfig
+        Setup and episode settings (:func:`evaluation_config`).
+    comparators : Comparators, optional
+        Comparators already found for this setup and certificate; by default those stored
+        with the first policy, cached or searched now (:func:`comparators_for`).
+    on_search : callable, optional
+        Called before a search of the comparators, for example to say it takes minutes.
+
+    Returns
+    -------
+    policies : list of GainPolicy
+        The policies as they run.
+    comparators : Comparators
+        Their comparators, with the open-loop schedule of the first policy as it runs.
+    """
+    moved = [law_under(policy, config) for policy in policies]
+    found = comparators or comparators_for(moved[0], certificate, config, on_search=on_search)
+    running = [law_or_static(policy, config, found.class_static) for policy in moved]
+    if running[0] is not moved[0] and found.schedule is not None:
+        found = found.for_policy(running[0], replace(config, certificate=certificate))
+    return running, found
 
 
 def _gains(values: np.ndarray) -> str:

@@ -39,7 +39,7 @@ import json
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -54,8 +54,8 @@ from teleopkit.rl.evaluation import closed_loop, episode_costs
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.sim.scenarios import Scenario
 
-__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_start", "law_under",
-           "search_gain_law"]
+__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_or_static", "law_start",
+           "law_under", "search_gain_law"]
 
 _LN2 = math.log(2.0)
 
@@ -263,6 +263,66 @@ def law_under(policy: GainPolicy, config: FlexTeleopConfig,
                           "best_static_after": after.tolist()}}
     return GainPolicy(policy.weights, policy.obs_mean, policy.obs_std, low_after,
                       (moved - low_after) / _LN2, metadata, policy.obs_range)
+
+
+def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarray,
+                  scenarios: int = 16, seed: int | None = None) -> GainPolicy:
+    """A gain law, or the constant gains it steps aside for on the setup it runs on.
+
+    The law and ``static``, the best constant gains of its class for the setup of ``config``
+    (searched on the setup's training scenarios, as the comparators are), run on those
+    training scenarios. Where the law costs more there on average, it steps aside: the law
+    returned plays ``static`` and nothing else (its output map's span is zero; its weights are
+    kept, to say which law stepped aside), and its metadata records both costs
+    (``stepped_aside``). The test is on the scenarios the constant gains were fitted to, which
+    favours them: a law runs only on a setup where it pays against them on their own ground.
+    A law that adapts across conditions can still lose to the constant gains of one
+    condition (a small operator from rest, for example: their best lie near the box's soft
+    corner); this is its fall-back, decided per setup, before any run.
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        A policy; one not searched by :func:`search_gain_law`, or one that already stepped
+        aside, is returned as it is.
+    config : FlexTeleopConfig
+        The setup and certificate it runs under (moved onto it first: :func:`law_under`).
+    static : ndarray, shape (2 n,)
+        The best constant gains of the certificate's set for the setup
+        (:attr:`~teleopkit.rl.comparators.Comparators.class_static`).
+    scenarios : int
+        Training scenarios.
+    seed : int, optional
+        Their seed; by default that of the best constant gains' search
+        (:data:`~teleopkit.rl.baselines.BASELINE_SEED`).
+
+    Returns
+    -------
+    GainPolicy
+        ``policy`` itself when it is no dearer than ``static`` on the training scenarios (to
+        rounding), else the law that plays ``static``.
+    """
+    from teleopkit.rl.baselines import BASELINE_SEED
+    from teleopkit.rl.comparators import policy_observation, tuner_controller
+    from teleopkit.rl.controllers import ConstantGains
+
+    if "law_search" not in policy.metadata or "stepped_aside" in policy.metadata:
+        return policy
+    static = np.asarray(static, dtype=float)
+    drawn = config.setup.scenarios(BASELINE_SEED if seed is None else seed, scenarios)
+    observed = replace(config, observation=policy_observation(policy))
+    law_cost = float(episode_costs(tuner_controller(policy), drawn, observed)[0].mean())
+    static_cost = float(episode_costs(ConstantGains(static), drawn, config)[0].mean())
+    if law_cost <= static_cost * (1.0 + 1e-9):  # a tie to rounding keeps the law
+        return policy
+    _log.info("the gain law steps aside for the constant gains %s on setup %s (training "
+              "scenarios: %.5g against %.5g)", static.round(4).tolist(),
+              config.setup.fingerprint, law_cost, static_cost)
+    aside = {"law_cost": law_cost, "static_cost": static_cost, "static": static.tolist(),
+             "scenarios": scenarios, "setup": config.setup.fingerprint}
+    return GainPolicy(policy.weights, policy.obs_mean, policy.obs_std, static,
+                      np.zeros_like(static), {**policy.metadata, "stepped_aside": aside},
+                      policy.obs_range)
 
 
 def _set_of(certificate: GainCertificate) -> str:

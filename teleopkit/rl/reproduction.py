@@ -21,6 +21,7 @@ import pandas as pd
 from teleopkit.progress import reports_progress
 from teleopkit.rl.comparison import (
     REFERENCE,
+    as_run,
     comparators_for,
     compare,
     evaluation_config,
@@ -33,7 +34,6 @@ from teleopkit.rl.comparison import (
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
-from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, PRETRAINED_LAW, GainPolicy
 from teleopkit.setup import Setup
 
@@ -98,7 +98,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
     certificate = policy_certificate(covered)
     config = evaluation_config(certificate, setup)
     comparators = comparators_for(covered, certificate, config)
-    law = law_under(GainPolicy.pretrained(PRETRAINED_LAW), config)
+    law = as_run([GainPolicy.pretrained(PRETRAINED_LAW)], certificate, config, comparators)[0][0]
     law_row = tuner_label(law, certificate.gain_variation)
     per_scenario = compare([covered], scenarios, seed, certificate, comparators=comparators,
                            others={PAPER_TUNER: (paper, replace(config, certificate=None)),
@@ -124,9 +124,10 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
                  "it, it gains or loses, and the gain law's smaller win here comes with less "
                  "harm elsewhere: `python benchmarks/bench_conditions.py` measures both on "
                  "twenty-three condition families and three mixtures of them, two with plants "
-                 "the law never saw (where its feedback beats its own schedule; the law is 14 % "
-                 "dearer than constant gains in one family, a random smooth operator from rest), "
-                 "and "
+                 "the law never saw (where its feedback beats its own schedule; where the law "
+                 "does not pay against a setup's best constant gains of its class on the setup's "
+                 "training scenarios, at rest or with a small operator from rest, it steps aside "
+                 "and plays them), and "
                  "`teleopkit evaluate --policy law --setup FILE` on your own setup.\n")
     summary = save_report(per_scenario, directory, baseline=REFERENCE, preamble=preamble,
                           tuner=tuner, schedule=schedule_label(certificate.gain_variation))

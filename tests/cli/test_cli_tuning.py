@@ -264,11 +264,14 @@ def test_evaluate_runs_a_law_beside_a_td3_tuner_each_with_its_own_observation(po
     """One row each; each row costs what the policy costs run alone with its observation."""
     from dataclasses import replace
 
-    from teleopkit.rl.comparison import evaluation_config
+    from teleopkit.rl.comparison import comparators_for, evaluation_config
     from teleopkit.rl.evaluation import rollout
 
     certificate = default_certificate()
-    law = still_law(np.array([4.0, 6.0, 12.0, 20.0]), certificate)
+    config = evaluation_config(certificate, duration=0.3)
+    # a law at the best constant gains of its class for this question: it does not step aside
+    static = comparators_for(policy, certificate, config).class_static
+    law = still_law(static, certificate)
     paths = tmp_path / "td3.npz", tmp_path / "law.npz"
     policy.save(paths[0])
     law.save(paths[1])
@@ -278,7 +281,7 @@ def test_evaluate_runs_a_law_beside_a_td3_tuner_each_with_its_own_observation(po
     rows = pd.read_csv(tmp_path / "ev" / "per_scenario.csv")
     summary = pd.read_csv(tmp_path / "ev" / "summary.csv", index_col=0)
     assert summary.index[0] == "TD3 (frozen)" and summary.index[-1] == "gain law (frozen)"
-    config = evaluation_config(certificate, duration=0.3)
+    assert "steps aside" not in done.stderr
     for name, alone, observation in (("TD3 (frozen)", policy, "paper"),
                                      ("gain law (frozen)", law, "adaptive")):
         expected = rollout(alone, 2, 7_777, replace(config, observation=observation)).metrics()
