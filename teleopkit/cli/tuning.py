@@ -327,8 +327,10 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                    "...", err=True)
 
     policies, comparators = as_run(policies, chosen, config, on_search=searching)
-    for path, policy in zip(policy_files, policies, strict=True):
-        _say_if_aside(_policy_name(path), policy)
+    asides = [text for path, policy in zip(policy_files, policies, strict=True)
+              if (text := _aside_text(_policy_name(path), policy)) is not None]
+    for text in asides:
+        click.echo(text, err=True)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
                            setup=setup, dt=dt)
     rows = tuner_rows(policies, chosen.gain_variation)
@@ -337,6 +339,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                                               + config.setup.network.backward.profiles))
     preamble = report_preamble(comparators, scenarios, seed, delays, tuner, len(rows[tuner]),
                                duration, others=_other_tuners(rows, tuner), setup=config.setup)
+    preamble += "".join(f"\n{text}.\n" for text in asides)
     summary = save_report(per_scenario, out, baseline=REFERENCE, preamble=preamble, tuner=tuner,
                           schedule=schedule_label(chosen.gain_variation))
     click.echo(to_markdown(summary, baseline=REFERENCE), nl=False)
@@ -361,15 +364,15 @@ def _policy_name(path: Path) -> str:
     return next((name for name in SHIPPED_POLICIES if resolve_policy(name) == path), str(path))
 
 
-def _say_if_aside(name: str, policy: GainPolicy) -> None:
-    """A line on standard error when a gain law steps aside for constant gains on the setup."""
+def _aside_text(name: str, policy: GainPolicy) -> str | None:
+    """What to say when a gain law steps aside for constant gains on the setup (else None)."""
     aside = policy.metadata.get("stepped_aside")
-    if aside is not None:
-        gains = ", ".join(f"{g:.3g}" for g in aside["static"])
-        click.echo(f"{name} steps aside on this setup: on its {aside['scenarios']} training "
-                   f"scenarios it cost {aside['law_cost']:.5g} against {aside['static_cost']:.5g} "
-                   f"for the best constant gains of its class ({gains}), which its row plays",
-                   err=True)
+    if aside is None:
+        return None
+    gains = ", ".join(f"{g:.3g}" for g in aside["static"])
+    return (f"{name} steps aside on this setup: on its {aside['scenarios']} training scenarios "
+            f"it cost {aside['law_cost']:.5g} against {aside['static_cost']:.5g} for the best "
+            f"constant gains of its class ({gains}), which its row plays")
 
 
 def _check_joints(name: str, policy: GainPolicy, setup: Setup) -> None:

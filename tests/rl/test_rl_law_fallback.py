@@ -80,6 +80,7 @@ def test_evaluate_says_when_a_law_steps_aside(stiff_law, tmp_path, capsys):
                  "--out", str(tmp_path / "eval")]) == 0
     err = capsys.readouterr().err
     assert "stiff.npz steps aside on this setup: on its 16 training scenarios it cost" in err
+    assert "stiff.npz steps aside on this setup" in (tmp_path / "eval" / "summary.md").read_text()
     summary = pd.read_csv(tmp_path / "eval" / "summary.csv", index_col=0)
     assert summary.loc["gain law (frozen)", "cost"] == pytest.approx(
         summary.loc[REFERENCE, "cost"], rel=1e-9)
