@@ -299,6 +299,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
         tuner_rows,
     )
     from teleopkit.rl.evaluation import save_report, to_markdown
+    from teleopkit.rl.law_search import stepped_aside
     from teleopkit.rl.policy import GainPolicy
 
     check_output_dir(out, "--out")
@@ -327,8 +328,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                    "...", err=True)
 
     policies, comparators = as_run(policies, chosen, config, on_search=searching)
-    asides = [text for path, policy in zip(policy_files, policies, strict=True)
-              if (text := _aside_text(_policy_name(path), policy)) is not None]
+    asides = [f"{_policy_name(path)} {text}"
+              for path, policy in zip(policy_files, policies, strict=True)
+              if (text := stepped_aside(policy)) is not None]
     for text in asides:
         click.echo(text, err=True)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
@@ -362,17 +364,6 @@ def _policy_name(path: Path) -> str:
     from teleopkit.rl.policy import SHIPPED_POLICIES, resolve_policy
 
     return next((name for name in SHIPPED_POLICIES if resolve_policy(name) == path), str(path))
-
-
-def _aside_text(name: str, policy: GainPolicy) -> str | None:
-    """What to say when a gain law steps aside for constant gains on the setup (else None)."""
-    aside = policy.metadata.get("stepped_aside")
-    if aside is None:
-        return None
-    gains = ", ".join(f"{g:.3g}" for g in aside["static"])
-    return (f"{name} steps aside on this setup: on its {aside['scenarios']} training scenarios "
-            f"it cost {aside['law_cost']:.5g} against {aside['static_cost']:.5g} for the best "
-            f"constant gains of its class ({gains}), which its row plays")
 
 
 def _check_joints(name: str, policy: GainPolicy, setup: Setup) -> None:

@@ -55,7 +55,7 @@ from teleopkit.rl.policy import GainPolicy
 from teleopkit.sim.scenarios import Scenario
 
 __all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_or_static", "law_start",
-           "law_under", "search_gain_law"]
+           "law_under", "search_gain_law", "stepped_aside"]
 
 _LN2 = math.log(2.0)
 
@@ -271,11 +271,15 @@ def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarr
 
     The law and ``static``, the best constant gains of its class for the setup of ``config``
     (searched on the setup's training scenarios, as the comparators are), run on those
-    training scenarios. Where the law costs more there on average, it steps aside: the law
-    returned plays ``static`` and nothing else (its output map's span is zero; its weights are
-    kept, to say which law stepped aside), and its metadata records both costs
-    (``stepped_aside``). The test is on the scenarios the constant gains were fitted to, which
-    favours them: a law runs only on a setup where it pays against them on their own ground.
+    training scenarios, and the law is judged as its search judged it: by its cost relative to
+    theirs per scenario, averaged, plus ``harm`` (the search's) times the mean excess where it
+    is dearer. Every scenario weighs the same, so one costly run cannot decide alone (a mix of
+    conditions has a few), and every scenario the law makes worse counts. Where this objective
+    is above 1, the law steps aside: the law returned plays ``static`` and nothing else (its
+    output map's span is zero; its weights are kept, to say which law stepped aside), and its
+    metadata records the objective and both mean costs (``stepped_aside``). The test is on the
+    scenarios the constant gains were fitted to, which favours them: a law runs only on a setup
+    where it pays against them on their own ground.
     A law that adapts across conditions can still lose to the constant gains of one
     condition (a small operator from rest, for example: their best lie near the box's soft
     corner); this is its fall-back, decided per setup, before any run.
@@ -289,7 +293,7 @@ def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarr
         The setup and certificate it runs under (moved onto it first: :func:`law_under`).
     static : ndarray, shape (2 n,)
         The best constant gains of the certificate's set for the setup
-        (:attr:`~teleopkit.rl.comparators.Comparators.class_static`).
+        (``class_static`` of :class:`~teleopkit.rl.comparators.Comparators`).
     scenarios : int
         Training scenarios.
     seed : int, optional
@@ -299,8 +303,8 @@ def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarr
     Returns
     -------
     GainPolicy
-        ``policy`` itself when it is no dearer than ``static`` on the training scenarios (to
-        rounding), else the law that plays ``static``.
+        ``policy`` itself when its objective against ``static`` on the training scenarios is
+        at most 1 (to rounding), else the law that plays ``static``.
     """
     from teleopkit.rl.baselines import BASELINE_SEED
     from teleopkit.rl.comparators import policy_observation, tuner_controller
@@ -311,18 +315,45 @@ def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarr
     static = np.asarray(static, dtype=float)
     drawn = config.setup.scenarios(BASELINE_SEED if seed is None else seed, scenarios)
     observed = replace(config, observation=policy_observation(policy))
-    law_cost = float(episode_costs(tuner_controller(policy), drawn, observed)[0].mean())
-    static_cost = float(episode_costs(ConstantGains(static), drawn, config)[0].mean())
-    if law_cost <= static_cost * (1.0 + 1e-9):  # a tie to rounding keeps the law
+    law_costs = episode_costs(tuner_controller(policy), drawn, observed)[0]
+    static_costs = episode_costs(ConstantGains(static), drawn, config)[0]
+    harm = float(policy.metadata["law_search"].get("harm", 1.0))
+    objective = float(_objective(law_costs[None], static_costs, harm)[0])
+    if objective <= 1.0 + 1e-9:  # a tie to rounding keeps the law
         return policy
-    _log.info("the gain law steps aside for the constant gains %s on setup %s (training "
-              "scenarios: %.5g against %.5g)", static.round(4).tolist(),
-              config.setup.fingerprint, law_cost, static_cost)
-    aside = {"law_cost": law_cost, "static_cost": static_cost, "static": static.tolist(),
-             "scenarios": scenarios, "setup": config.setup.fingerprint}
+    law_cost, static_cost = float(law_costs.mean()), float(static_costs.mean())
+    _log.info("the gain law steps aside for the constant gains %s on setup %s (objective on "
+              "the training scenarios %.4f)", static.round(4).tolist(), config.setup.fingerprint,
+              objective)
+    aside = {"objective": objective, "law_cost": law_cost, "static_cost": static_cost,
+             "static": static.tolist(), "scenarios": scenarios,
+             "setup": config.setup.fingerprint}
     return GainPolicy(policy.weights, policy.obs_mean, policy.obs_std, static,
                       np.zeros_like(static), {**policy.metadata, "stepped_aside": aside},
                       policy.obs_range)
+
+
+def stepped_aside(policy: GainPolicy) -> str | None:
+    """Why a law plays constant gains on its setup, in words (None if it runs as searched).
+
+    Parameters
+    ----------
+    policy : GainPolicy
+        A policy, for example returned by :func:`law_or_static`.
+
+    Returns
+    -------
+    str or None
+        ``"steps aside on this setup: ..."``, with both costs and the gains it plays.
+    """
+    aside = policy.metadata.get("stepped_aside")
+    if aside is None:
+        return None
+    gains = ", ".join(f"{g:.3g}" for g in aside["static"])
+    return (f"steps aside on this setup: on its {aside['scenarios']} training scenarios it cost "
+            f"{100 * (aside['objective'] - 1):+.1f} % against the best constant gains of its "
+            f"class ({gains}; per scenario, with its excess where dearer; mean costs "
+            f"{aside['law_cost']:.5g} and {aside['static_cost']:.5g}), which its row plays")
 
 
 def _set_of(certificate: GainCertificate) -> str:

@@ -34,6 +34,7 @@ from teleopkit.rl.comparison import (
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
+from teleopkit.rl.law_search import stepped_aside
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, PRETRAINED_LAW, GainPolicy
 from teleopkit.setup import Setup
 
@@ -117,7 +118,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
                  "operator's motion and of both errors, the delay and the tank level to the "
                  "gains, searched on a mix of operators, starts and delays (`teleopkit "
                  "search-law --setup mixed`); it adapts across conditions instead of fitting "
-                 "this one."})
+                 "this one." + (f" It {aside}." if (aside := stepped_aside(law)) else "")})
     preamble += ("\nThis is one condition. The shipped TD3 tuner's win here is the opening of "
                  "the paper's start, damped on a schedule (compare its open-loop row); on other "
                  "starts, operators, walls and delays, each against constant gains searched for "
