@@ -17,7 +17,7 @@ the tuner's own mean schedule replayed open loop, all searched for that family o
 scenarios (never on the held-out ones), on the same held-out scenarios. A gain law runs moved
 onto the family's certificate where that set differs from the one it was searched under
 (:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and steps aside for the
-family's best constant gains of its class where it does worse than them on the family's training
+family's best constant gains of its class where they are cheaper on the family's training
 scenarios (:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``). It
 prints, per family and
 tuner, the mean cost and the paired differences (per scenario, mean and standard error) against

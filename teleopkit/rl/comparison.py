@@ -4,7 +4,7 @@ A trained policy records the certificate it was trained under (:func:`policy_cer
 is evaluated under that certificate unless another one that covers its class is given
 (:func:`check_covers`; a gain law is then moved onto that certificate's set,
 :func:`~teleopkit.rl.law_search.law_under`). A gain law steps aside for the best constant gains
-of its class on a setup where it does worse than them on the setup's training scenarios
+of its class on a setup where they are cheaper on the setup's training scenarios
 (:func:`~teleopkit.rl.law_search.law_or_static`, :func:`as_run`). Beside it, on the same
 held-out scenarios, run
 its comparators (:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the
@@ -155,7 +155,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     policies : sequence of GainPolicy
         One or more policies, each trained under a class the certificate covers; a gain law
         runs as :func:`as_run` makes it (moved onto the certificate, and stepping aside where
-        it does worse than the best constant gains of its class on the setup's training scenarios).
+        the best constant gains of its class are cheaper on the setup's training scenarios).
         Policies of one kind and observation (training seeds of one recipe) make one row;
         another kind or observation (a gain law beside a TD3 tuner) makes its own row, run with
         its own observation after the comparators (:func:`tuner_rows`). The comparators are

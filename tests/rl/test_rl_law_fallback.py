@@ -32,7 +32,7 @@ def test_a_law_dearer_than_the_constant_gains_plays_them_and_says_why(stiff_law)
     drawn = SHORT.setup.scenarios(BASELINE_SEED, 4)
     assert record["static_cost"] == pytest.approx(static_cost(GOOD, drawn, SHORT)[0].mean(),
                                                   rel=1e-9)
-    assert record["law_cost"] > record["static_cost"] and record["objective"] > 1.0
+    assert record["law_cost"] > record["static_cost"]
     assert record["static"] == GOOD.tolist() and record["setup"] == SHORT.setup.fingerprint
     assert all(np.array_equal(a, b) for pair, other in zip(aside.weights, stiff_law.weights,
                                                            strict=True)
@@ -40,7 +40,7 @@ def test_a_law_dearer_than_the_constant_gains_plays_them_and_says_why(stiff_law)
     assert law_or_static(aside, SHORT, STIFF, scenarios=4) is aside  # decided once
     said = stepped_aside(aside)
     assert said.startswith("steps aside on this setup: on its 4 training scenarios it cost")
-    assert "(3.4, 7.4, 8.6, 18.5;" in said and stepped_aside(stiff_law) is None
+    assert "(3.4, 7.4, 8.6, 18.5)" in said and stepped_aside(stiff_law) is None
 
 
 def test_a_law_no_dearer_than_the_constant_gains_runs_as_it_is():
