@@ -16,14 +16,13 @@ box (``best static``, the reference), those of the tuner's class, the tuned semi
 the tuner's own mean schedule replayed open loop, all searched for that family on its training
 scenarios (never on the held-out ones), on the same held-out scenarios. A gain law runs moved
 onto the family's certificate where that set differs from the one it was searched under
-(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and steps aside for the
-family's best constant gains of its class where they are cheaper on the family's training
-scenarios (:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``). It
-prints, per family and
-tuner, the mean cost and the paired differences (per scenario, mean and standard error) against
-the family's best static gains of both classes and the tuner's open-loop schedule (the
-difference of the mean costs in % of the comparator's, and the mean over the scenarios of the
-ratio of costs, which weighs every run the same), with the cost split into the first 2 s and
+(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and with ``--fall-back``
+steps aside for the family's best constant gains of its class where they are cheaper on the family's
+training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``). It
+prints, per family and tuner, the mean cost and the paired differences (per scenario, mean and
+standard error) against the family's best static gains of both classes and the tuner's open-loop
+schedule (the difference of the mean costs in % of the comparator's, and the mean over the scenarios
+of the ratio of costs, which weighs every run the same), with the cost split into the first 2 s and
 the rest, and writes ``per_scenario.csv`` and ``summary.csv`` to ``--out``.
 """
 
@@ -226,14 +225,14 @@ def families(folder: Path) -> dict[str, Setup]:
 
 
 def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios: int,
-               ) -> tuple[pd.DataFrame, list[dict[str, object]]]:
+               fall_back: bool = False) -> tuple[pd.DataFrame, list[dict[str, object]]]:
     """Every tuner on one family: per-scenario rows and the summary rows."""
     frames, rows = [], []
     variation = policy_certificate(next(iter(tuners.values()))).gain_variation
     certificate = default_certificate(setup.params, setup.network.reached_bounds, variation,
                                       setup.plants, setup.ranges)
     config = evaluation_config(certificate, setup)
-    running, found = as_run(list(tuners.values()), certificate, config)
+    running, found = as_run(list(tuners.values()), certificate, config, fall_back=fall_back)
     tuners = dict(zip(tuners, running, strict=True))
     for tuner_name, policy in tuners.items():
         comparators = found if policy is running[0] else found.for_policy(policy, config)
@@ -281,6 +280,8 @@ def main() -> None:
     parser.add_argument("--families", nargs="+", default=None, help="family names (default all)")
     parser.add_argument("--scenarios", type=int, default=32)
     parser.add_argument("--out", type=Path, default=Path("runs/conditions"))
+    parser.add_argument("--fall-back", action="store_true",
+                        help="let a gain law step aside where it does not pay (as_run)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -292,7 +293,7 @@ def main() -> None:
     names = args.families or list(chosen)
     frames, rows = [], []
     for name in names:
-        table, summary = run_family(name, chosen[name], tuners, args.scenarios)
+        table, summary = run_family(name, chosen[name], tuners, args.scenarios, args.fall_back)
         frames.append(table)
         rows += summary
     pd.concat(frames).to_csv(args.out / "per_scenario.csv", index=False)

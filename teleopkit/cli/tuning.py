@@ -268,11 +268,15 @@ class _PolicyFile(click.Path):
               help="Gain certificate (teleopkit certify --json) to run the policies under; it "
                    "must cover the class they were trained under [default: the certificate "
                    "recorded in the first policy file].")
+@click.option("--fall-back", is_flag=True, default=False,
+              help="Let a gain law step aside for the best constant gains of its class where "
+                   "they are cheaper on the setup's training scenarios (those they were fitted "
+                   "to: on a varied setup this sets aside laws that pay on held-out ones).")
 @dt_option
 @setup_option
 def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                      delay: str | None, duration: float, out: Path, certificate: Path | None,
-                     dt: float, setup: Setup) -> int:
+                     fall_back: bool, dt: float, setup: Setup) -> int:
     """Compare TD3 policies with the best static gains and the other comparators.
 
     Every row runs on the same held-out scenarios drawn from the setup; policies of one kind
@@ -285,9 +289,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     searched for the same question). A gain law evaluated under a certificate with another
     set than the one it was searched under is moved onto it first: its start moves as the
     best constant gains of the setup move between the two sets (two searches, about a minute).
-    A gain law steps aside on a setup where the best constant gains of its class are cheaper
-    on the setup's training scenarios (the scenarios they were searched on): its row then
-    plays them, and a line says so.
+    With --fall-back a gain law steps aside on a setup where the best constant gains of its
+    class are cheaper on the setup's training scenarios (the scenarios they were searched on):
+    its row then plays them, and a line says so.
     """
     from teleopkit.rl.comparison import (
         REFERENCE,
@@ -327,14 +331,15 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
                    "switching the semi-active law and the open-loop schedule; a few minutes) "
                    "...", err=True)
 
-    policies, comparators = as_run(policies, chosen, config, on_search=searching)
+    policies, comparators = as_run(policies, chosen, config, on_search=searching,
+                                   fall_back=fall_back)
     asides = [f"{_policy_name(path)} {text}"
               for path, policy in zip(policy_files, policies, strict=True)
               if (text := stepped_aside(policy)) is not None]
     for text in asides:
         click.echo(text, err=True)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
-                           setup=setup, dt=dt)
+                           setup=setup, dt=dt, fall_back=fall_back)
     rows = tuner_rows(policies, chosen.gain_variation)
     tuner = next(iter(rows))
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles

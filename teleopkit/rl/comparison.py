@@ -3,8 +3,8 @@
 A trained policy records the certificate it was trained under (:func:`policy_certificate`); it
 is evaluated under that certificate unless another one that covers its class is given
 (:func:`check_covers`; a gain law is then moved onto that certificate's set,
-:func:`~teleopkit.rl.law_search.law_under`). A gain law steps aside for the best constant gains
-of its class on a setup where they are cheaper on the setup's training scenarios
+:func:`~teleopkit.rl.law_search.law_under`). Asked to, a gain law steps aside for the best
+constant gains of its class on a setup where they are cheaper on the setup's training scenarios
 (:func:`~teleopkit.rl.law_search.law_or_static`, :func:`as_run`). Beside it, on the same
 held-out scenarios, run
 its comparators (:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the
@@ -147,15 +147,16 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
             duration: float = 40.0, comparators: Comparators | None = None,
             others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None,
             setup: Setup | None = None, progress: bool | None = None,
-            dt: float = DEFAULT_DT) -> pd.DataFrame:
+            dt: float = DEFAULT_DT, fall_back: bool = False) -> pd.DataFrame:
     """Per-scenario metrics of a tuner and its comparators on the same held-out scenarios.
 
     Parameters
     ----------
     policies : sequence of GainPolicy
         One or more policies, each trained under a class the certificate covers; a gain law
-        runs as :func:`as_run` makes it (moved onto the certificate, and stepping aside where
-        the best constant gains of its class are cheaper on the setup's training scenarios).
+        runs as :func:`as_run` makes it (moved onto the certificate, and with ``fall_back``
+        stepping aside where the best constant gains of its class are cheaper on the setup's
+        training scenarios).
         Policies of one kind and observation (training seeds of one recipe) make one row;
         another kind or observation (a gain law beside a TD3 tuner) makes its own row, run with
         its own observation after the comparators (:func:`tuner_rows`). The comparators are
@@ -187,6 +188,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
         terminal only; ``False`` never, ``True`` always (:mod:`teleopkit.progress`).
     dt : float
         Integration step in seconds (a smaller one for a plant the default cannot integrate).
+    fall_back : bool
+        Let a gain law step aside where it does not pay (:func:`as_run`).
 
     Returns
     -------
@@ -200,7 +203,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     for policy in policies:
         check_covers(certificate, policy)
     config = evaluation_config(certificate, setup, delay, duration, dt)
-    policies, found = as_run(policies, certificate, config, comparators)
+    policies, found = as_run(policies, certificate, config, comparators, fall_back=fall_back)
     tuners = {name: ([tuner_controller(p) for p in group],
                      replace(config, observation=policy_observation(group[0])))
               for name, group in tuner_rows(policies, certificate.gain_variation).items()}
@@ -219,14 +222,14 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
 
 def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
            config: FlexTeleopConfig, comparators: Comparators | None = None,
-           on_search: Callable[[], None] | None = None,
+           on_search: Callable[[], None] | None = None, fall_back: bool = False,
            ) -> tuple[list[GainPolicy], Comparators]:
     """Policies as they run on a setup, and their comparators.
 
-    A gain law is moved onto the certificate (:func:`~teleopkit.rl.law_search.law_under`) and
-    steps aside for the best constant gains of its class where they are cheaper on the setup's
-    training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`); any other policy runs
-    as it is.
+    A gain law is moved onto the certificate (:func:`~teleopkit.rl.law_search.law_under`) and,
+    with ``fall_back``, steps aside for the best constant gains of its class where they are
+    cheaper on the setup's training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`);
+    any other policy runs as it is.
 
     Parameters
     ----------
@@ -241,6 +244,10 @@ def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
         with the first policy, cached or searched now (:func:`comparators_for`).
     on_search : callable, optional
         Called before a search of the comparators, for example to say it takes minutes.
+    fall_back : bool
+        Let a gain law step aside where it does not pay on the setup's training scenarios (off
+        by default: those are the scenarios the constant gains were fitted to, and on a varied
+        setup they favour them enough to set aside a law that pays on held-out scenarios).
 
     Returns
     -------
@@ -251,7 +258,8 @@ def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
     """
     moved = [law_under(policy, config) for policy in policies]
     found = comparators or comparators_for(moved[0], certificate, config, on_search=on_search)
-    running = [law_or_static(policy, config, found.class_static) for policy in moved]
+    running = [law_or_static(policy, config, found.class_static) if fall_back else policy
+               for policy in moved]
     if running[0] is not moved[0] and found.schedule is not None:
         found = found.for_policy(running[0], replace(config, certificate=certificate))
     return running, found

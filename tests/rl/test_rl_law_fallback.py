@@ -57,7 +57,7 @@ def test_a_policy_that_is_not_a_law_runs_as_it_is(stiff_law):
 
 @pytest.fixture(scope="module")
 def compared(stiff_law):
-    return compare([stiff_law], 3, duration=4.0, progress=False)
+    return compare([stiff_law], 3, duration=4.0, progress=False, fall_back=True)
 
 
 def test_a_law_that_stepped_aside_costs_what_its_class_constant_gains_cost(compared):
@@ -70,7 +70,8 @@ def test_a_law_that_stepped_aside_costs_what_its_class_constant_gains_cost(compa
 def test_the_comparators_schedule_is_the_law_as_it_runs(stiff_law):
     config = FlexTeleopConfig(episode_length=4.0)
     certificate = config.safety_certificate()
-    (running,), comparators = as_run([stiff_law], certificate, config)
+    assert as_run([stiff_law], certificate, config)[0][0] is stiff_law  # asked, not by default
+    (running,), comparators = as_run([stiff_law], certificate, config, fall_back=True)
     assert "stepped_aside" in running.metadata
     np.testing.assert_allclose(running(np.zeros((1, stiff_law.obs_mean.size)))[0],
                                comparators.class_static, rtol=1e-12)
@@ -80,7 +81,7 @@ def test_evaluate_says_when_a_law_steps_aside(stiff_law, tmp_path, capsys):
     path = tmp_path / "stiff.npz"
     stiff_law.save(path)
     assert main(["evaluate", "--policy", str(path), "--scenarios", "2", "--duration", "2",
-                 "--out", str(tmp_path / "eval")]) == 0
+                 "--fall-back", "--out", str(tmp_path / "eval")]) == 0
     err = capsys.readouterr().err
     assert "stiff.npz steps aside on this setup: on its 16 training scenarios it cost" in err
     assert "stiff.npz steps aside on this setup" in (tmp_path / "eval" / "summary.md").read_text()
