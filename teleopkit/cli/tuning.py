@@ -339,7 +339,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     for text in asides:
         click.echo(text, err=True)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
-                           setup=setup, dt=dt, fall_back=fall_back)
+                           setup=setup, dt=dt)  # the policies as_run already prepared
     rows = tuner_rows(policies, chosen.gain_variation)
     tuner = next(iter(rows))
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles

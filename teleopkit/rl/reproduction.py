@@ -21,7 +21,6 @@ import pandas as pd
 from teleopkit.progress import reports_progress
 from teleopkit.rl.comparison import (
     REFERENCE,
-    as_run,
     comparators_for,
     compare,
     evaluation_config,
@@ -34,6 +33,7 @@ from teleopkit.rl.comparison import (
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
+from teleopkit.rl.law_search import law_under
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, PRETRAINED_LAW, GainPolicy
 from teleopkit.setup import Setup
 
@@ -98,7 +98,7 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
     certificate = policy_certificate(covered)
     config = evaluation_config(certificate, setup)
     comparators = comparators_for(covered, certificate, config)
-    law = as_run([GainPolicy.pretrained(PRETRAINED_LAW)], certificate, config, comparators)[0][0]
+    law = law_under(GainPolicy.pretrained(PRETRAINED_LAW), config)
     law_row = tuner_label(law, certificate.gain_variation)
     per_scenario = compare([covered], scenarios, seed, certificate, comparators=comparators,
                            others={PAPER_TUNER: (paper, replace(config, certificate=None)),
