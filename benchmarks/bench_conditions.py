@@ -3,7 +3,7 @@
 Run from the repository root (a few minutes per family; comparators are cached)::
 
     python benchmarks/bench_conditions.py [--policies covered FILE ...] [--families NAME ...]
-        [--scenarios 32] [--out runs/conditions]
+        [--scenarios 32] [--out runs/conditions] [--no-fall-back]
 
 Every family is a setup (plant, network, operator, start) that differs from the paper's in one
 way (one draws each scenario's remote plant from ranges: :data:`PLANT_RANGES`); the last three,
@@ -16,9 +16,10 @@ box (``best static``, the reference), those of the tuner's class, the tuned semi
 the tuner's own mean schedule replayed open loop, all searched for that family on its training
 scenarios (never on the held-out ones), on the same held-out scenarios. A gain law runs moved
 onto the family's certificate where that set differs from the one it was searched under
-(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and with ``--fall-back``
-steps aside for the family's best constant gains of its class where they are cheaper on the family's
-training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``). It
+(:func:`~teleopkit.rl.law_search.law_under`: constant 0.3 s delays), and steps aside for the
+family's best constant gains of its class where they are cheaper on fresh scenarios of the family
+(:func:`~teleopkit.rl.law_search.law_or_static`; column ``stepped aside``; ``--no-fall-back``
+runs it as searched). It
 prints, per family and tuner, the mean cost and the paired differences (per scenario, mean and
 standard error) against the family's best static gains of both classes and the tuner's open-loop
 schedule (the difference of the mean costs in % of the comparator's, and the mean over the scenarios
@@ -39,6 +40,7 @@ import pandas as pd
 import torch
 
 from teleopkit.certification.certifier import default_certificate
+from teleopkit.files import atomic_write
 from teleopkit.model.params import PlanarArm, Wall
 from teleopkit.rl.comparison import (
     REFERENCE,
@@ -129,7 +131,8 @@ def _trace_file(folder: Path) -> Path:
     spikes = (rng.random(t.size) < 0.005) * rng.uniform(0.1, 0.3, t.size)
     delay = np.clip(0.6 + walk - walk.mean() + rng.normal(0.0, 0.02, t.size) + spikes, 0.3, 1.0)
     path = (folder / "trace.csv").resolve()
-    pd.DataFrame({"t": t, "delay": delay}).to_csv(path, index=False)
+    # atomic: another run on the same folder may be reading it
+    atomic_write(path, lambda tmp: pd.DataFrame({"t": t, "delay": delay}).to_csv(tmp, index=False))
     return path
 
 
@@ -225,7 +228,7 @@ def families(folder: Path) -> dict[str, Setup]:
 
 
 def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios: int,
-               fall_back: bool = False) -> tuple[pd.DataFrame, list[dict[str, object]]]:
+               fall_back: bool = True) -> tuple[pd.DataFrame, list[dict[str, object]]]:
     """Every tuner on one family: per-scenario rows and the summary rows."""
     frames, rows = [], []
     variation = policy_certificate(next(iter(tuners.values()))).gain_variation
@@ -237,7 +240,7 @@ def run_family(name: str, setup: Setup, tuners: dict[str, GainPolicy], scenarios
     for tuner_name, policy in tuners.items():
         comparators = found if policy is running[0] else found.for_policy(policy, config)
         table = compare([policy], scenarios, certificate=certificate, setup=setup,
-                        comparators=comparators, progress=False)
+                        comparators=comparators, progress=False, fall_back=False)  # decided
         label = tuner_label(policy, variation)
         table = table.assign(family=name, tuner=tuner_name)
         frames.append(table)
@@ -280,8 +283,9 @@ def main() -> None:
     parser.add_argument("--families", nargs="+", default=None, help="family names (default all)")
     parser.add_argument("--scenarios", type=int, default=32)
     parser.add_argument("--out", type=Path, default=Path("runs/conditions"))
-    parser.add_argument("--fall-back", action="store_true",
-                        help="let a gain law step aside where it does not pay (as_run)")
+    parser.add_argument("--fall-back", action=argparse.BooleanOptionalAction, default=True,
+                        help="let a gain law step aside where it does not pay (as_run); "
+                             "--no-fall-back runs it as searched")
     args = parser.parse_args()
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)

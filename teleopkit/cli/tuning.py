@@ -268,10 +268,10 @@ class _PolicyFile(click.Path):
               help="Gain certificate (teleopkit certify --json) to run the policies under; it "
                    "must cover the class they were trained under [default: the certificate "
                    "recorded in the first policy file].")
-@click.option("--fall-back", is_flag=True, default=False,
-              help="Let a gain law step aside for the best constant gains of its class where "
-                   "they are cheaper on the setup's training scenarios (those they were fitted "
-                   "to: on a varied setup this sets aside laws that pay on held-out ones).")
+@click.option("--fall-back/--no-fall-back", default=True, show_default=True,
+              help="Let a gain law step aside for the best constant gains of its class on a "
+                   "setup where they are cheaper on fresh scenarios of it (neither those they "
+                   "were searched on nor the held-out ones); --no-fall-back runs it as searched.")
 @dt_option
 @setup_option
 def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
@@ -289,9 +289,9 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     searched for the same question). A gain law evaluated under a certificate with another
     set than the one it was searched under is moved onto it first: its start moves as the
     best constant gains of the setup move between the two sets (two searches, about a minute).
-    With --fall-back a gain law steps aside on a setup where the best constant gains of its
-    class are cheaper on the setup's training scenarios (the scenarios they were searched on):
-    its row then plays them, and a line says so.
+    A gain law steps aside on a setup where the best constant gains of its class are cheaper
+    on 32 fresh scenarios of it (neither those the gains were searched on nor the held-out
+    ones): its row then plays them, and a line says so (--no-fall-back runs it as searched).
     """
     from teleopkit.rl.comparison import (
         REFERENCE,
@@ -339,7 +339,7 @@ def evaluate_command(policy_files: tuple[Path, ...], scenarios: int, seed: int,
     for text in asides:
         click.echo(text, err=True)
     per_scenario = compare(policies, scenarios, seed, chosen, delay, duration, comparators,
-                           setup=setup, dt=dt)  # the policies as_run already prepared
+                           setup=setup, dt=dt, fall_back=False)  # as_run decided already
     rows = tuner_rows(policies, chosen.gain_variation)
     tuner = next(iter(rows))
     delays = delay or ", ".join(dict.fromkeys(config.setup.network.forward.profiles

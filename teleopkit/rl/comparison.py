@@ -3,13 +3,13 @@
 A trained policy records the certificate it was trained under (:func:`policy_certificate`); it
 is evaluated under that certificate unless another one that covers its class is given
 (:func:`check_covers`; a gain law is then moved onto that certificate's set,
-:func:`~teleopkit.rl.law_search.law_under`). Asked to, a gain law steps aside for the best
-constant gains of its class on a setup where they are cheaper on the setup's training scenarios
-(:func:`~teleopkit.rl.law_search.law_or_static`, :func:`as_run`). Beside it, on the same
-held-out scenarios, run
-its comparators (:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the
-reference of every table, and of the tuner's class, the tuned semi-active law, the tuner's
-open-loop schedule, the paper's fixed gains), searched for the setup being evaluated.
+:func:`~teleopkit.rl.law_search.law_under`). A gain law steps aside for the best constant gains
+of its class on a setup where they are cheaper on fresh scenarios of it
+(:func:`~teleopkit.rl.law_search.law_or_static`, :func:`as_run`), unless asked to run as
+searched. Beside it, on the same held-out scenarios, run its comparators
+(:mod:`teleopkit.rl.comparators`: best static gains of the frozen class, the reference of every
+table, and of the tuner's class, the tuned semi-active law, the tuner's open-loop schedule, the
+paper's fixed gains), searched for the setup being evaluated.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
             duration: float = 40.0, comparators: Comparators | None = None,
             others: Mapping[str, tuple[Controller, FlexTeleopConfig]] | None = None,
             setup: Setup | None = None, progress: bool | None = None,
-            dt: float = DEFAULT_DT, fall_back: bool = False) -> pd.DataFrame:
+            dt: float = DEFAULT_DT, fall_back: bool = True) -> pd.DataFrame:
     """Per-scenario metrics of a tuner and its comparators on the same held-out scenarios.
 
     Parameters
@@ -155,8 +155,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     policies : sequence of GainPolicy
         One or more policies, each trained under a class the certificate covers; a gain law
         runs as :func:`as_run` makes it (moved onto the certificate, and with ``fall_back``
-        stepping aside where the best constant gains of its class are cheaper on the setup's
-        training scenarios).
+        stepping aside where the best constant gains of its class are cheaper on fresh
+        scenarios of the setup).
         Policies of one kind and observation (training seeds of one recipe) make one row;
         another kind or observation (a gain law beside a TD3 tuner) makes its own row, run with
         its own observation after the comparators (:func:`tuner_rows`). The comparators are
@@ -189,7 +189,8 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
     dt : float
         Integration step in seconds (a smaller one for a plant the default cannot integrate).
     fall_back : bool
-        Let a gain law step aside where it does not pay (:func:`as_run`).
+        Let a gain law step aside where it does not pay (:func:`as_run`); ``False`` runs it
+        as searched.
 
     Returns
     -------
@@ -222,14 +223,15 @@ def compare(policies: Sequence[GainPolicy], scenarios: int = 32, seed: int = EVA
 
 def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
            config: FlexTeleopConfig, comparators: Comparators | None = None,
-           on_search: Callable[[], None] | None = None, fall_back: bool = False,
+           on_search: Callable[[], None] | None = None, fall_back: bool = True,
            ) -> tuple[list[GainPolicy], Comparators]:
     """Policies as they run on a setup, and their comparators.
 
     A gain law is moved onto the certificate (:func:`~teleopkit.rl.law_search.law_under`) and,
     with ``fall_back``, steps aside for the best constant gains of its class where they are
-    cheaper on the setup's training scenarios (:func:`~teleopkit.rl.law_search.law_or_static`);
-    any other policy runs as it is.
+    cheaper on fresh scenarios of the setup (:func:`~teleopkit.rl.law_search.law_or_static`:
+    neither those the constant gains were searched on nor held-out ones); any other policy
+    runs as it is.
 
     Parameters
     ----------
@@ -245,9 +247,7 @@ def as_run(policies: Sequence[GainPolicy], certificate: GainCertificate,
     on_search : callable, optional
         Called before a search of the comparators, for example to say it takes minutes.
     fall_back : bool
-        Let a gain law step aside where it does not pay on the setup's training scenarios (off
-        by default: those are the scenarios the constant gains were fitted to, and on a varied
-        setup they favour them enough to set aside a law that pays on held-out scenarios).
+        Let a gain law step aside where it does not pay; ``False`` runs it as searched.
 
     Returns
     -------

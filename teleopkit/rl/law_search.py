@@ -54,8 +54,14 @@ from teleopkit.rl.evaluation import closed_loop, episode_costs
 from teleopkit.rl.policy import GainPolicy
 from teleopkit.sim.scenarios import Scenario
 
-__all__ = ["LawSearchConfig", "LawSearchResult", "law_features", "law_or_static", "law_start",
-           "law_under", "search_gain_law", "stepped_aside"]
+__all__ = ["DECISION_SEED", "LawSearchConfig", "LawSearchResult", "law_features", "law_or_static",
+           "law_start", "law_under", "search_gain_law", "stepped_aside"]
+
+DECISION_SEED = 5_151
+"""Seed of the scenarios on which a gain law's fall-back is decided (:func:`law_or_static`):
+draws of the setup that neither the comparators' search (seed
+:data:`~teleopkit.rl.baselines.BASELINE_SEED`) nor an evaluation (seed
+:data:`~teleopkit.rl.evaluation.EVAL_SEED`) uses."""
 
 _LN2 = math.log(2.0)
 
@@ -266,18 +272,16 @@ def law_under(policy: GainPolicy, config: FlexTeleopConfig,
 
 
 def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarray,
-                  scenarios: int = 16, seed: int | None = None) -> GainPolicy:
+                  scenarios: int = 32, seed: int = DECISION_SEED) -> GainPolicy:
     """A gain law, or the constant gains it steps aside for on the setup it runs on.
 
     The law and ``static``, the best constant gains of its class for the setup of ``config``
-    (searched on the setup's training scenarios, as the comparators are), run on those
-    training scenarios. Where the law costs more there on average, it steps aside: the law
-    returned plays ``static`` and nothing else (its output map's span is zero; its weights are
-    kept, to say which law stepped aside), and its metadata records both costs
-    (``stepped_aside``). The test is on the scenarios the constant gains were fitted to, which
-    favours them: a law runs only on a setup where it pays against them on their own ground.
-    On a varied setup (a mix of conditions) 16 scenarios fit the constant gains closely, and a
-    law that pays on held-out scenarios may step aside there.
+    (searched on the setup's training scenarios, as the comparators are), run on fresh
+    scenarios of the setup: neither those the constant gains were fitted to, which favour them
+    (on a varied setup enough to set aside a law that pays), nor the held-out ones of an
+    evaluation. Where the law costs more there on average, it steps aside: the law returned
+    plays ``static`` and nothing else (its output map's span is zero; its weights are kept, to
+    say which law stepped aside), and its metadata records both costs (``stepped_aside``).
     A law that adapts across conditions can still lose to the constant gains of one
     condition (a small operator from rest, for example: their best lie near the box's soft
     corner); this is its fall-back, decided per setup, before any run.
@@ -293,35 +297,33 @@ def law_or_static(policy: GainPolicy, config: FlexTeleopConfig, static: np.ndarr
         The best constant gains of the certificate's set for the setup
         (``class_static`` of :class:`~teleopkit.rl.comparators.Comparators`).
     scenarios : int
-        Training scenarios.
-    seed : int, optional
-        Their seed; by default that of the best constant gains' search
-        (:data:`~teleopkit.rl.baselines.BASELINE_SEED`).
+        Scenarios the decision is made on.
+    seed : int
+        Their seed (by default :data:`DECISION_SEED`).
 
     Returns
     -------
     GainPolicy
-        ``policy`` itself when it is no dearer than ``static`` on the training scenarios (to
+        ``policy`` itself when it is no dearer than ``static`` on those scenarios (to
         rounding), else the law that plays ``static``.
     """
-    from teleopkit.rl.baselines import BASELINE_SEED
     from teleopkit.rl.comparators import policy_observation, tuner_controller
     from teleopkit.rl.controllers import ConstantGains
 
     if "law_search" not in policy.metadata or "stepped_aside" in policy.metadata:
         return policy
     static = np.asarray(static, dtype=float)
-    drawn = config.setup.scenarios(BASELINE_SEED if seed is None else seed, scenarios)
+    drawn = config.setup.scenarios(seed, scenarios)
     observed = replace(config, observation=policy_observation(policy))
     law_cost = float(episode_costs(tuner_controller(policy), drawn, observed)[0].mean())
     static_cost = float(episode_costs(ConstantGains(static), drawn, config)[0].mean())
     if law_cost <= static_cost * (1.0 + 1e-9):  # a tie to rounding keeps the law
         return policy
-    _log.info("the gain law steps aside for the constant gains %s on setup %s (training "
+    _log.info("the gain law steps aside for the constant gains %s on setup %s (%d fresh "
               "scenarios: %.5g against %.5g)", static.round(4).tolist(),
-              config.setup.fingerprint, law_cost, static_cost)
+              config.setup.fingerprint, scenarios, law_cost, static_cost)
     aside = {"law_cost": law_cost, "static_cost": static_cost, "static": static.tolist(),
-             "scenarios": scenarios, "setup": config.setup.fingerprint}
+             "scenarios": scenarios, "seed": seed, "setup": config.setup.fingerprint}
     return GainPolicy(policy.weights, policy.obs_mean, policy.obs_std, static,
                       np.zeros_like(static), {**policy.metadata, "stepped_aside": aside},
                       policy.obs_range)
@@ -344,7 +346,7 @@ def stepped_aside(policy: GainPolicy) -> str | None:
     if aside is None:
         return None
     gains = ", ".join(f"{g:.3g}" for g in aside["static"])
-    return (f"steps aside on this setup: on its {aside['scenarios']} training scenarios it cost "
+    return (f"steps aside on this setup: on {aside['scenarios']} fresh scenarios of it, it cost "
             f"{aside['law_cost']:.5g} against {aside['static_cost']:.5g} for the best constant "
             f"gains of its class ({gains}), which its row plays")
 
