@@ -37,14 +37,17 @@ def test_a_runaway_run_warns_with_the_time_a_position_passed_the_radius():
     assert str(caught[0].message) == f"the run diverged at t = {expected:g} s: a position passed " \
                                      "20 rad"
     assert trajectory.diverged_at() == pytest.approx([expected])
-    assert np.isnan(trajectory.diverged_at(Divergence(radius=1e6))).all()  # never that far
+    # Past 20 rad the growth depends on rounding (on some CPUs a step overflows): a larger
+    # radius is passed no sooner, if at all.
+    farther = trajectory.diverged_at(Divergence(radius=1e6))
+    assert np.isnan(farther).all() or (farther >= expected).all()
 
 
 def test_the_table_of_simulate_warns_too_and_keeps_the_run():
     with pytest.warns(DivergenceWarning, match="the run diverged at t = "):
         table = tk.simulate(**RUNAWAY)
     positions = table.filter(regex=r"^(ql|qr|theta)_\d$").to_numpy()
-    assert len(table) == 1501 and np.abs(positions).max() > 20.0
+    assert len(table) == 1501 and np.nanmax(np.abs(positions)) > 20.0  # every row, kept
 
 
 def test_a_stable_run_neither_warns_nor_is_flagged():
