@@ -22,7 +22,7 @@ import pandas as pd
 from teleopkit.progress import reports_progress
 from teleopkit.rl.comparison import (
     REFERENCE,
-    comparators_for,
+    as_run,
     compare,
     evaluation_config,
     policy_certificate,
@@ -34,7 +34,7 @@ from teleopkit.rl.comparison import (
 )
 from teleopkit.rl.controllers import ConstantGains
 from teleopkit.rl.evaluation import EVAL_SEED, rollout, save_report
-from teleopkit.rl.law_search import law_or_static, law_under, stepped_aside
+from teleopkit.rl.law_search import stepped_aside
 from teleopkit.rl.policy import PRETRAINED, PRETRAINED_COVERED, PRETRAINED_LAW, GainPolicy
 from teleopkit.setup import Setup
 
@@ -98,9 +98,8 @@ def reproduce(out: str | Path, scenarios: int = 32, seed: int = EVAL_SEED,
     paper = GainPolicy.pretrained(PRETRAINED)
     certificate = policy_certificate(covered)
     config = evaluation_config(certificate, setup)
-    comparators = comparators_for(covered, certificate, config)
-    law = law_or_static(law_under(GainPolicy.pretrained(PRETRAINED_LAW), config), config,
-                        comparators.class_static)
+    (covered, law), comparators = as_run([covered, GainPolicy.pretrained(PRETRAINED_LAW)],
+                                         certificate, config)
     aside = stepped_aside(law)
     law_row = tuner_label(law, certificate.gain_variation)
     per_scenario = compare([covered], scenarios, seed, certificate, comparators=comparators,
